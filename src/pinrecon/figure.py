@@ -1,0 +1,616 @@
+"""Figures: a Pinocchio model built from a URDF plus a named keypoint map.
+
+A keypoint is a point rigidly attached to a Pinocchio frame: ``p_world = oMf * offset``.
+The figure gives keypoint positions and their analytic Jacobians with respect to the
+tangent space of the configuration (``nv``), joint limits per tangent index, and the
+Lie-group operations the solver needs (all taken from Pinocchio).
+
+Conventions (see ``docs/derivations.md``):
+
+* ``q`` has ``nq`` entries, tangent vectors ``v`` have ``nv``; with a free-flyer root
+  ``q[:7] = (x, y, z, qx, qy, qz, qw)`` and ``v[:6]`` is a *local* SE(3) twist
+  ``(v_local, w_local)``, so ``q (+) v = pin.integrate(q, v) = q * exp6(v)``.
+* Keypoint Jacobians are d p_world / d v: the velocity of the keypoint in world axes
+  per unit tangent velocity. From Pinocchio's WORLD joint Jacobian ``J = [J_lin; J_ang]``
+  (velocity of the point at the world origin) the keypoint's is
+  ``J_p = J_lin - [p]x J_ang``, restricted to the keypoint's supporting joints.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import os
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+
+from ._resources import example_robot_data_robots, model_path
+from .errors import InputError, UnknownNameError
+
+__all__ = ["Figure", "Keypoint", "load_keypoint_map"]
+
+ROOT_JOINT = "root_joint"
+
+
+@dataclass(frozen=True)
+class Keypoint:
+    """A named point fixed in a Pinocchio frame: ``p_world = oMf * offset``."""
+
+    name: str
+    frame: str
+    offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+
+def _parse_keypoint_entries(entries, file=None) -> list[Keypoint]:
+    if isinstance(entries, Mapping):
+        items = list(entries.items())
+    else:
+        raise InputError("must be an object {name: {frame, offset}}", file=file, field="keypoints")
+    out = []
+    for name, spec in items:
+        field = f"keypoints.{name}"
+        if isinstance(spec, str):
+            spec = {"frame": spec}
+        if not isinstance(spec, Mapping) or "frame" not in spec:
+            raise InputError("needs a 'frame' (and optional 'offset')", file=file, field=field)
+        offset = spec.get("offset", (0.0, 0.0, 0.0))
+        try:
+            off = np.asarray(offset, dtype=float)
+        except (TypeError, ValueError):
+            raise InputError("offset must be 3 numbers", file=file, field=field) from None
+        if off.shape != (3,) or not np.all(np.isfinite(off)):
+            raise InputError(f"offset must be 3 finite numbers, got {offset!r}", file=file, field=field)
+        out.append(Keypoint(str(name), str(spec["frame"]), tuple(float(x) for x in off)))
+    return out
+
+
+def load_keypoint_map(path: str | os.PathLike) -> list[Keypoint]:
+    """Read a keypoint map JSON: ``{"keypoints": {name: {"frame": f, "offset": [x, y, z]}}}``."""
+    path = Path(path)
+    try:
+        data = json.loads(path.read_text())
+    except FileNotFoundError:
+        raise InputError("file not found", file=path) from None
+    except json.JSONDecodeError as exc:
+        raise InputError(f"not valid JSON ({exc.msg} at line {exc.lineno})", file=path) from None
+    if not isinstance(data, Mapping) or "keypoints" not in data:
+        raise InputError("missing top-level 'keypoints' object", file=path, field="keypoints")
+    return _parse_keypoint_entries(data["keypoints"], file=path)
+
+
+def _limits_from_urdf_xml(xml: str) -> dict[str, tuple[float, float]]:
+    """Joint name -> (lower, upper) for revolute/prismatic joints whose URDF sets both."""
+    import yourdfpy
+
+    robot = yourdfpy.URDF.load(
+        io.StringIO(xml), build_scene_graph=False, load_meshes=False, build_collision_scene_graph=False
+    ).robot
+    out = {}
+    for j in robot.joints:
+        if j.type in ("revolute", "prismatic") and j.limit is not None:
+            lo, hi = j.limit.lower, j.limit.upper
+            if lo is not None and hi is not None and lo < hi:
+                out[j.name] = (float(lo), float(hi))
+    return out
+
+
+class Figure:
+    """A Pinocchio model and a keypoint map.
+
+    Build one with :meth:`from_urdf`, :meth:`human` or :meth:`from_bvh`.
+
+    Attributes
+    ----------
+    model, data : the Pinocchio model and a data buffer owned by this figure.
+    keypoint_names : names of the K keypoints, in order.
+    joint_names : names of the movable joints (Pinocchio order, root first when free).
+    lower_v, upper_v : (nv,) joint limits per tangent index, -inf/+inf where unset.
+    urdf_xml : the URDF text the model was built from (used to edit and save figures).
+    """
+
+    def __init__(
+        self,
+        model: pin.Model,
+        keypoints: Iterable[Keypoint],
+        *,
+        name: str = "figure",
+        urdf_xml: str | None = None,
+        limits: Mapping[str, tuple[float, float]] | None = None,
+        source: str | None = None,
+        floating: bool = True,
+        meta: dict | None = None,
+    ):
+        self.model = model
+        self.data = model.createData()
+        self.name = name
+        self.urdf_xml = urdf_xml
+        self.source = source
+        self.floating = floating
+        self.meta = dict(meta or {})
+        self.nq, self.nv = model.nq, model.nv
+        self.joint_names = list(model.names[1:])
+        self._joint_ids = {n: i for i, n in enumerate(model.names) if i > 0}
+        self._set_limits(limits or {})
+        self._set_keypoints(list(keypoints))
+
+    # ------------------------------------------------------------------ building
+    @classmethod
+    def from_urdf_string(
+        cls,
+        xml: str,
+        keypoints: Iterable[Keypoint] | str | os.PathLike | None = None,
+        *,
+        root: str = "free",
+        name: str | None = None,
+        source: str | None = None,
+        limits: Mapping[str, tuple[float, float]] | None | str = "urdf",
+        meta: dict | None = None,
+    ) -> Figure:
+        """Build a figure from URDF text. See :meth:`from_urdf`."""
+        where = source or "<urdf string>"
+        if root not in ("free", "fixed"):
+            raise InputError(f"root must be 'free' or 'fixed', got {root!r}", field="root")
+        try:
+            if root == "free":
+                model = pin.buildModelFromXML(xml, pin.JointModelFreeFlyer())
+            else:
+                model = pin.buildModelFromXML(xml)
+        except (ValueError, RuntimeError) as exc:
+            msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+            raise InputError(f"URDF does not parse: {msg}", file=where) from None
+        if limits == "urdf":
+            try:
+                limits = _limits_from_urdf_xml(xml)
+            except Exception as exc:  # yourdfpy raises a variety of types
+                raise InputError(f"URDF does not parse: {exc}", file=where) from None
+        if keypoints is None:
+            keypoints = [Keypoint(model.names[j], model.names[j]) for j in range(1, model.njoints)]
+        elif isinstance(keypoints, (str, os.PathLike)):
+            keypoints = load_keypoint_map(keypoints)
+        robot_name = name or model.name or "figure"
+        fig = cls(
+            model,
+            keypoints,
+            name=robot_name,
+            urdf_xml=xml,
+            limits=limits,
+            source=source,
+            floating=root == "free",
+            meta=meta,
+        )
+        return fig
+
+    @classmethod
+    def from_urdf(
+        cls,
+        path: str | os.PathLike,
+        keypoints: Iterable[Keypoint] | str | os.PathLike | None = None,
+        *,
+        root: str = "free",
+        name: str | None = None,
+    ) -> Figure:
+        """Load a URDF file.
+
+        Parameters
+        ----------
+        path : URDF file.
+        keypoints : keypoint list or keypoint-map JSON path; default: one keypoint at each
+            joint origin, named as the joint.
+        root : ``"free"`` (free-flyer root, SE(3)) or ``"fixed"`` (base fixed to the world).
+        """
+        path = Path(path)
+        try:
+            xml = path.read_text()
+        except FileNotFoundError:
+            raise InputError("file not found", file=path) from None
+        return cls.from_urdf_string(xml, keypoints, root=root, name=name, source=str(path))
+
+    @classmethod
+    def human(cls, keypoints: str = "coco17", *, root: str = "free") -> Figure:
+        """The human model of example-robot-data (38 joints, nv = 42 with the free flyer).
+
+        ``keypoints`` is ``"coco17"`` (COCO-17 body points; face points are offsets on the
+        head frame documented in ``models/keypoints/human_coco17.json``), ``"joints"``
+        (the model's own joint centres) or a path to a keypoint-map JSON file.
+        """
+        urdf = example_robot_data_robots() / "human_description" / "robots" / "human.urdf"
+        maps = {"coco17": "human_coco17.json", "joints": "human_joints.json"}
+        kp_path = model_path("keypoints", maps[keypoints]) if keypoints in maps else Path(keypoints)
+        return cls.from_urdf(urdf, load_keypoint_map(kp_path), root=root, name="human")
+
+    @classmethod
+    def from_bvh(cls, path, length_scale: float = 1.0, *, lock: Iterable[str] = ()) -> Figure:
+        """The figure of a BVH file's skeleton (its motion is ignored).
+
+        See :func:`pinrecon.io.bvh.figure_from_bvh` for the construction.
+        """
+        from .io.bvh import figure_from_bvh, read_bvh
+
+        return figure_from_bvh(read_bvh(path), length_scale, lock=lock)
+
+    def with_keypoints(self, keypoints: Iterable[Keypoint] | str | os.PathLike) -> Figure:
+        """The same model with another keypoint map."""
+        if isinstance(keypoints, (str, os.PathLike)):
+            keypoints = load_keypoint_map(keypoints)
+        return Figure(
+            self.model,
+            keypoints,
+            name=self.name,
+            urdf_xml=self.urdf_xml,
+            limits=self._limit_dict(),
+            source=self.source,
+            floating=self.floating,
+            meta=self.meta,
+        )
+
+    # ------------------------------------------------------------------ structure
+    def _set_limits(self, limits: Mapping[str, tuple[float, float]]):
+        lower = np.full(self.nv, -np.inf)
+        upper = np.full(self.nv, np.inf)
+        unknown = [n for n in limits if n not in self._joint_ids]
+        if unknown:
+            raise UnknownNameError("joint", unknown, self.joint_names, field="limits")
+        for jname, (lo, hi) in limits.items():
+            jid = self._joint_ids[jname]
+            if self.model.nvs[jid] != 1 or self.model.nqs[jid] != 1:
+                continue  # limits are only meaningful on 1-dof joints with nq == nv
+            iv = self.model.idx_vs[jid]
+            lower[iv], upper[iv] = lo, hi
+        self.lower_v, self.upper_v = lower, upper
+        self.limited_v = np.isfinite(lower) | np.isfinite(upper)
+
+    def _limit_dict(self):
+        out = {}
+        for jname, jid in self._joint_ids.items():
+            if self.model.nvs[jid] == 1 and self.model.nqs[jid] == 1:
+                iv = self.model.idx_vs[jid]
+                if self.limited_v[iv]:
+                    out[jname] = (self.lower_v[iv], self.upper_v[iv])
+        return out
+
+    def _set_keypoints(self, keypoints: list[Keypoint]):
+        model = self.model
+        names = [k.name for k in keypoints]
+        dup = sorted({n for n in names if names.count(n) > 1})
+        if dup:
+            raise InputError(f"duplicate keypoint names {dup}", field="keypoints")
+        frame_names = [f.name for f in model.frames]
+        bad = [k.frame for k in keypoints if not model.existFrame(k.frame)]
+        if bad:
+            raise UnknownNameError("frame", bad, frame_names, field="keypoints")
+        self.keypoints_def = keypoints
+        self.keypoint_names = names
+        self.K = len(keypoints)
+        self._kp_index = {n: i for i, n in enumerate(names)}
+        joint_ids = np.empty(self.K, dtype=int)
+        p_joint = np.empty((self.K, 3))
+        for i, kp in enumerate(keypoints):
+            frame = model.frames[model.getFrameId(kp.frame)]
+            joint_ids[i] = frame.parentJoint
+            p_joint[i] = frame.placement.act(np.asarray(kp.offset, float))
+        self._kp_joint = joint_ids
+        self._kp_p_joint = p_joint
+        self._kp_unique_joints, self._kp_joint_slot = np.unique(joint_ids, return_inverse=True)
+        self._kp_joint_list = [int(j) for j in self._kp_unique_joints]
+        mask = np.zeros((self.K, self.nv), dtype=bool)
+        for i, j in enumerate(joint_ids):
+            for s in model.supports[int(j)]:
+                if s > 0:
+                    iv, nv = model.idx_vs[s], model.nvs[s]
+                    mask[i, iv : iv + nv] = True
+        self._kp_mask = mask
+
+    def support_mask(self, keypoint_names: Iterable[str], tol: float = 1e-9) -> np.ndarray:
+        """(nv,) bool: tangent entries that move at least one of the named keypoints.
+
+        Decided from the keypoint Jacobian columns at three random configurations, so a
+        rotation whose axis passes through every keypoint it carries (e.g. the hand's own
+        rotation when only the wrist point is used) counts as not moving anything.
+        """
+        idx = self.keypoint_index(list(keypoint_names))
+        if not len(idx):
+            return np.zeros(self.nv, bool)
+        Q = np.stack([self.random_configuration(s, unlimited=1.0) for s in (11, 12, 13)])
+        _, J = self.keypoint_jacobians(Q)
+        return np.abs(J[:, idx]).max(axis=(0, 1, 2)) > tol
+
+    def keypoint_index(self, names: Iterable[str], *, file=None, field=None) -> np.ndarray:
+        """Indices of keypoint ``names``; unknown names raise an error listing the valid ones."""
+        names = list(names)
+        unknown = [n for n in names if n not in self._kp_index]
+        if unknown:
+            raise UnknownNameError("keypoint", unknown, self.keypoint_names, file=file, field=field)
+        return np.array([self._kp_index[n] for n in names], dtype=int)
+
+    def joint_id(self, name: str, *, file=None, field=None, frame=None) -> int:
+        if name not in self._joint_ids:
+            raise UnknownNameError("joint", [name], self.joint_names, file=file, field=field, frame=frame)
+        return self._joint_ids[name]
+
+    def joint_slices(self, name: str) -> tuple[slice, slice]:
+        """(q slice, v slice) of joint ``name``."""
+        j = self.joint_id(name)
+        m = self.model
+        return (
+            slice(m.idx_qs[j], m.idx_qs[j] + m.nqs[j]),
+            slice(m.idx_vs[j], m.idx_vs[j] + m.nvs[j]),
+        )
+
+    @property
+    def root_v(self) -> slice:
+        """Tangent slice of the free-flyer root (empty for a fixed root)."""
+        return slice(0, 6) if self.floating else slice(0, 0)
+
+    @property
+    def tangent_names(self) -> list[str]:
+        """One name per tangent index: root components, then joint names."""
+        out = []
+        for j in range(1, self.model.njoints):
+            nv = self.model.nvs[j]
+            n = self.model.names[j]
+            if nv == 1:
+                out.append(n)
+            elif self.floating and j == 1 and nv == 6:
+                out += [f"{n}.{c}" for c in ("vx", "vy", "vz", "wx", "wy", "wz")]
+            else:
+                out += [f"{n}.{k}" for k in range(nv)]
+        return out
+
+    @property
+    def parents_of_keypoints(self) -> list[int | None]:
+        """For drawing: the nearest ancestor keypoint of each keypoint in the kinematic tree."""
+        model = self.model
+        by_joint: dict[int, list[int]] = {}
+        for i, j in enumerate(self._kp_joint):
+            by_joint.setdefault(int(j), []).append(i)
+        # within a joint, a keypoint at the joint origin is the parent of the others
+        out: list[int | None] = [None] * self.K
+        origin_kp = {}
+        for j, kps in by_joint.items():
+            at_origin = [i for i in kps if np.linalg.norm(self._kp_p_joint[i]) < 1e-9]
+            origin_kp[j] = at_origin[0] if at_origin else None
+        for i, j in enumerate(self._kp_joint):
+            j = int(j)
+            if origin_kp[j] is not None and origin_kp[j] != i:
+                out[i] = origin_kp[j]
+                continue
+            a = model.parents[j]
+            while a > 0 and a not in by_joint:
+                a = model.parents[a]
+            if a > 0:
+                cand = by_joint[a]
+                out[i] = origin_kp[a] if origin_kp[a] is not None else cand[0]
+        return out
+
+    # ------------------------------------------------------------------ Lie group
+    def neutral(self) -> np.ndarray:
+        return pin.neutral(self.model)
+
+    def integrate(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """``q (+) v`` for one configuration or a trajectory (T, nq) with (T, nv)."""
+        q, v = np.asarray(q, float), np.asarray(v, float)
+        if q.ndim == 1:
+            return pin.integrate(self.model, q, v)
+        return np.stack([pin.integrate(self.model, a, b) for a, b in zip(q, v)])
+
+    def difference(self, q0: np.ndarray, q1: np.ndarray) -> np.ndarray:
+        """``q1 (-) q0``: the tangent v with ``q0 (+) v = q1`` (trajectories allowed)."""
+        q0, q1 = np.asarray(q0, float), np.asarray(q1, float)
+        if q0.ndim == 1 and q1.ndim == 1:
+            return pin.difference(self.model, q0, q1)
+        q0, q1 = np.broadcast_arrays(q0, q1)
+        return np.stack([pin.difference(self.model, a, b) for a, b in zip(q0, q1)])
+
+    def d_difference(self, q0: np.ndarray, q1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Jacobians of ``difference(q0, q1)`` w.r.t. the tangents at q0 and at q1."""
+        return (
+            pin.dDifference(self.model, q0, q1, pin.ARG0),
+            pin.dDifference(self.model, q0, q1, pin.ARG1),
+        )
+
+    def interpolate(self, q0, q1, alpha: float) -> np.ndarray:
+        """Geodesic interpolation ``q0 (+) alpha (q1 (-) q0)``."""
+        return pin.interpolate(self.model, q0, q1, float(alpha))
+
+    def normalize(self, q: np.ndarray) -> np.ndarray:
+        """Re-normalise quaternions (in place on a copy)."""
+        q = np.array(q, float)
+        if q.ndim == 1:
+            pin.normalize(self.model, q)
+            return q
+        for row in q:
+            pin.normalize(self.model, row)
+        return q
+
+    def clamp(self, q: np.ndarray, margin: float = 0.0) -> np.ndarray:
+        """Clamp the limited 1-dof joints of ``q`` (or a trajectory) inside their limits."""
+        q = np.array(q, float)
+        m = self.model
+        for jid in range(1, m.njoints):
+            if m.nvs[jid] == 1 and m.nqs[jid] == 1:
+                iv, iq = m.idx_vs[jid], m.idx_qs[jid]
+                if self.limited_v[iv]:
+                    lo, hi = self.lower_v[iv], self.upper_v[iv]
+                    mg = min(margin, 0.25 * (hi - lo))
+                    q[..., iq] = np.clip(q[..., iq], lo + mg, hi - mg)
+        return q
+
+    def random_configuration(self, rng=None, *, root_box: float = 1.0, unlimited: float = np.pi) -> np.ndarray:
+        """A random configuration inside the joint limits.
+
+        The root translation is uniform in ``[-root_box, root_box]^3`` with a uniformly
+        random orientation; joints without limits are uniform in ``[-unlimited, unlimited]``.
+        """
+        rng = np.random.default_rng(rng)
+        m = self.model
+        q = pin.neutral(m)
+        if self.floating:
+            q[:3] = rng.uniform(-root_box, root_box, 3)
+            quat = rng.normal(size=4)
+            q[3:7] = quat / np.linalg.norm(quat)
+        for jid in range(2 if self.floating else 1, m.njoints):
+            iq, nq, iv, nv = m.idx_qs[jid], m.nqs[jid], m.idx_vs[jid], m.nvs[jid]
+            if nq == 1 and nv == 1:
+                lo = self.lower_v[iv] if np.isfinite(self.lower_v[iv]) else -unlimited
+                hi = self.upper_v[iv] if np.isfinite(self.upper_v[iv]) else unlimited
+                q[iq] = rng.uniform(lo, hi)
+            else:
+                v = np.zeros(m.nv)
+                v[iv : iv + nv] = rng.normal(size=nv)
+                q = pin.integrate(m, q, v)
+        return q
+
+    # ------------------------------------------------------------------ kinematics
+    def _joint_poses(self) -> np.ndarray:
+        """(U, 4, 4) world poses of the keypoints' parent joints (after FK)."""
+        oMi = self.data.oMi
+        return np.array([oMi[j].homogeneous for j in self._kp_joint_list])
+
+    def _points_from_poses(self, M: np.ndarray) -> np.ndarray:
+        """Keypoint positions from parent-joint poses M (..., U, 4, 4) -> (..., K, 3)."""
+        M = M[..., self._kp_joint_slot, :3, :]
+        return np.einsum("...kab,kb->...ka", M[..., :3], self._kp_p_joint) + M[..., 3]
+
+    def check_q(self, q, *, field="q"):
+        q = np.asarray(q, dtype=float)
+        if q.shape[-1] != self.nq:
+            raise InputError(f"expected configurations of size nq={self.nq}, got shape {q.shape}", field=field)
+        return q
+
+    def keypoints(self, q: np.ndarray) -> np.ndarray:
+        """World positions of the keypoints: (K, 3) for q (nq,), (T, K, 3) for (T, nq)."""
+        q = self.check_q(q)
+        if q.ndim == 1:
+            pin.forwardKinematics(self.model, self.data, q)
+            return self._points_from_poses(self._joint_poses())
+        M = np.empty((q.shape[0], len(self._kp_joint_list), 4, 4))
+        model, data = self.model, self.data
+        for f in range(q.shape[0]):
+            pin.forwardKinematics(model, data, q[f])
+            M[f] = self._joint_poses()
+        return self._points_from_poses(M)
+
+    def keypoint_jacobians(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Keypoint positions (K, 3) and Jacobians d p_world / d v (K, 3, nv).
+
+        For a trajectory (T, nq) returns (T, K, 3) and (T, K, 3, nv).
+        """
+        q = self.check_q(q)
+        single = q.ndim == 1
+        Q = q[None] if single else q
+        T, U = Q.shape[0], len(self._kp_joint_list)
+        J_world = np.empty((T, 6, self.nv))
+        M = np.empty((T, U, 4, 4))
+        model, data = self.model, self.data
+        for f in range(T):
+            J_world[f] = pin.computeJointJacobians(model, data, Q[f])
+            M[f] = self._joint_poses()
+        p = self._points_from_poses(M)
+        # v_p = v_O + w x p = J_lin v + (J_ang v) x p  ->  J_lin - [p]x J_ang  (WORLD Jacobian)
+        J_lin, J_ang = J_world[:, None, :3, :], J_world[:, None, 3:, :]
+        px, py, pz = (p[..., i, None] for i in range(3))
+        wx, wy, wz = J_ang[:, :, 0], J_ang[:, :, 1], J_ang[:, :, 2]
+        cross = np.stack([wy * pz - wz * py, wz * px - wx * pz, wx * py - wy * px], axis=2)
+        J = (J_lin + cross) * self._kp_mask[None, :, None, :]
+        return (p[0], J[0]) if single else (p, J)
+
+    def frame_placement(self, q: np.ndarray, frame: str) -> pin.SE3:
+        q = self.check_q(q)
+        fid = self.model.getFrameId(frame)
+        if fid >= self.model.nframes:
+            raise UnknownNameError("frame", [frame], [f.name for f in self.model.frames])
+        pin.forwardKinematics(self.model, self.data, q)
+        return pin.updateFramePlacement(self.model, self.data, fid).copy()
+
+    def coincident_keypoints(self, tol: float = 1e-9) -> list[list[str]]:
+        """Groups of keypoints that coincide in every configuration (e.g. BVH joints with
+        zero OFFSET, which sit at their parent). Checked at the neutral and two random
+        configurations."""
+        qs = [self.neutral(), self.random_configuration(0), self.random_configuration(1)]
+        P = np.stack([self.keypoints(q) for q in qs])  # (3, K, 3)
+        groups: list[list[int]] = []
+        assigned = np.full(self.K, -1)
+        for i in range(self.K):
+            if assigned[i] >= 0:
+                continue
+            same = np.where(np.all(np.linalg.norm(P - P[:, i : i + 1], axis=-1) < tol, axis=0))[0]
+            same = [int(s) for s in same if assigned[s] < 0]
+            assigned[same] = len(groups)
+            groups.append(same)
+        return [[self.keypoint_names[i] for i in g] for g in groups]
+
+    @property
+    def distinct_keypoint_names(self) -> list[str]:
+        """One keypoint name per distinct position: the first of each coincident group."""
+        if "_distinct" not in self.meta:
+            self.meta["_distinct"] = [g[0] for g in self.coincident_keypoints()]
+        return list(self.meta["_distinct"])
+
+    # ------------------------------------------------------------------ editing
+    def scaled_urdf(self, joint_scales: Mapping[str, float] | float) -> str:
+        """URDF text with the origin translations of the named URDF joints scaled.
+
+        ``joint_scales`` maps URDF joint names to factors, or is one factor for all joints.
+        Edited with yourdfpy.
+        """
+        import yourdfpy
+
+        if self.urdf_xml is None:
+            raise InputError("this figure has no URDF to edit", field="urdf")
+        urdf = yourdfpy.URDF.load(io.StringIO(self.urdf_xml), build_scene_graph=False, load_meshes=False)
+        names = [j.name for j in urdf.robot.joints]
+        if isinstance(joint_scales, Mapping):
+            unknown = [n for n in joint_scales if n not in names]
+            if unknown:
+                raise UnknownNameError("URDF joint", unknown, names, field="joint_scales")
+            scales = dict(joint_scales)
+        else:
+            scales = {n: float(joint_scales) for n in names}
+        for j in urdf.robot.joints:
+            if j.name in scales and j.origin is not None:
+                j.origin = np.array(j.origin, float)
+                j.origin[:3, 3] *= scales[j.name]
+        return urdf.write_xml_string()
+
+    def rescaled(self, joint_scales: Mapping[str, float] | float, keypoint_scales: Mapping[str, float] | None = None) -> Figure:
+        """A new figure whose URDF joint origins (and optionally keypoint offsets) are scaled."""
+        xml = self.scaled_urdf(joint_scales)
+        kps = []
+        uniform = None if isinstance(joint_scales, Mapping) else float(joint_scales)
+        for k in self.keypoints_def:
+            f = (keypoint_scales or {}).get(k.name, uniform if uniform is not None else 1.0)
+            kps.append(Keypoint(k.name, k.frame, tuple(f * np.asarray(k.offset))))
+        return Figure.from_urdf_string(
+            xml,
+            kps,
+            root="free" if self.floating else "fixed",
+            name=self.name,
+            source=None,
+            limits=self._limit_dict(),
+            meta={k: v for k, v in self.meta.items() if not k.startswith("_")},
+        )
+
+    def save_urdf(self, path: str | os.PathLike) -> None:
+        """Write the figure's URDF atomically."""
+        if self.urdf_xml is None:
+            raise InputError("this figure has no URDF to save", field="urdf")
+        from .io.atomic import atomic_write_text
+
+        atomic_write_text(path, self.urdf_xml)
+
+    def keypoint_map_dict(self) -> dict:
+        return {
+            "figure": self.name,
+            "keypoints": {k.name: {"frame": k.frame, "offset": list(k.offset)} for k in self.keypoints_def},
+        }
+
+    def __repr__(self) -> str:
+        root = "free-flyer" if self.floating else "fixed"
+        return (
+            f"Figure({self.name!r}, {self.model.njoints} joints, nq={self.nq}, nv={self.nv}, "
+            f"{root} root, {self.K} keypoints, {int(self.limited_v.sum())} limited dofs)"
+        )

@@ -1,0 +1,114 @@
+"""pinrecon's own tracks format, JSON and NPZ (``docs/formats.md``).
+
+JSON: ``{"fps": 120.0, "names": [K names], "points": T x K list of [u, v] or null,
+"confidence": optional T x K}``. NPZ: the same keys, ``points`` (T, K, 2) with NaN for
+missing.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+from ..tracks import Tracks
+from .atomic import atomic_path, atomic_write_text
+
+__all__ = ["load_tracks_json", "load_tracks_npz", "save_tracks", "tracks_to_dict"]
+
+
+def _require(data, key, path):
+    if key not in data:
+        raise InputError("required field is missing", file=path, field=key)
+    return data[key]
+
+
+def load_tracks_json(path: str | os.PathLike) -> Tracks:
+    path = Path(path)
+    try:
+        data = json.loads(path.read_text())
+    except json.JSONDecodeError as exc:
+        raise InputError(f"not valid JSON ({exc.msg} at line {exc.lineno})", file=path) from None
+    if not isinstance(data, dict):
+        raise InputError("expected a JSON object with fps, names, points", file=path)
+    fps = _require(data, "fps", path)
+    names = _require(data, "names", path)
+    rows = _require(data, "points", path)
+    if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
+        raise InputError("must be a list of strings", file=path, field="names")
+    if not isinstance(rows, list):
+        raise InputError("must be a list of frames", file=path, field="points")
+    K = len(names)
+    pts = np.full((len(rows), K, 2), np.nan)
+    for t, row in enumerate(rows):
+        if not isinstance(row, list) or len(row) != K:
+            n = len(row) if isinstance(row, list) else type(row).__name__
+            raise InputError(f"expected {K} points (one per name), got {n}", file=path, field="points", frame=t)
+        for k, p in enumerate(row):
+            if p is None:
+                continue
+            if not isinstance(p, list) or len(p) != 2:
+                raise InputError(
+                    f"point {names[k]!r} must be [u, v] or null, got {p!r}", file=path, field="points", frame=t
+                )
+            try:
+                pts[t, k] = [np.nan if c is None else float(c) for c in p]
+            except (TypeError, ValueError):
+                raise InputError(f"point {names[k]!r} is not numeric: {p!r}", file=path, field="points", frame=t) from None
+    conf = data.get("confidence")
+    if conf is not None:
+        if not isinstance(conf, list) or len(conf) != len(rows):
+            raise InputError(f"expected {len(rows)} rows to match points", file=path, field="confidence")
+        arr = np.zeros((len(rows), K))
+        for t, row in enumerate(conf):
+            if not isinstance(row, list) or len(row) != K:
+                raise InputError(f"expected {K} values", file=path, field="confidence", frame=t)
+            try:
+                arr[t] = [np.nan if c is None else float(c) for c in row]
+            except (TypeError, ValueError):
+                raise InputError("not numeric", file=path, field="confidence", frame=t) from None
+        conf = arr
+    return Tracks(pts, names, fps, conf, str(path))
+
+
+def load_tracks_npz(path: str | os.PathLike) -> Tracks:
+    path = Path(path)
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            data = {k: z[k] for k in z.files}
+    except (ValueError, OSError) as exc:
+        raise InputError(f"not a readable NPZ file ({exc})", file=path) from None
+    for key in ("fps", "names", "points"):
+        _require(data, key, path)
+    fps = data["fps"]
+    if fps.shape != ():
+        raise InputError(f"must be a scalar, got shape {fps.shape}", file=path, field="fps")
+    names = [str(n) for n in np.atleast_1d(data["names"])]
+    return Tracks(data["points"], names, float(fps), data.get("confidence"), str(path))
+
+
+def tracks_to_dict(tracks: Tracks) -> dict:
+    pts = [
+        [None if not np.all(np.isfinite(p)) else [float(p[0]), float(p[1])] for p in row]
+        for row in tracks.points
+    ]
+    out = {"fps": tracks.fps, "names": list(tracks.names), "points": pts}
+    if tracks.confidence is not None:
+        out["confidence"] = tracks.confidence.tolist()
+    return out
+
+
+def save_tracks(tracks: Tracks, path: str | os.PathLike) -> None:
+    path = Path(path)
+    if path.suffix.lower() == ".npz":
+        arrays = {"fps": np.float64(tracks.fps), "names": np.array(tracks.names), "points": tracks.points}
+        if tracks.confidence is not None:
+            arrays["confidence"] = tracks.confidence
+        with atomic_path(path) as tmp:
+            with open(tmp, "wb") as fh:
+                np.savez(fh, **arrays)
+    else:
+        atomic_write_text(path, json.dumps(tracks_to_dict(tracks)))

@@ -1,0 +1,342 @@
+"""2D joint tracks and 3D keyframes: the observations pinrecon reconstructs from.
+
+Validation lives here: every problem is reported with the file, the field and the frame.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .errors import InputError, UnknownNameError
+
+__all__ = ["Tracks", "Markers", "Keyframe", "Keyframes", "load_tracks", "load_keyframes", "keyframes_from_points"]
+
+
+@dataclass(eq=False)
+class Tracks:
+    """2D positions of K named points over T frames.
+
+    Attributes
+    ----------
+    points : (T, K, 2) image positions in pixels, NaN where missing.
+    names : K point names (matched against the figure's keypoint names).
+    fps : frames per second.
+    confidence : optional (T, K) weights in [0, 1] (detector scores); NaN counts as 0.
+    source : file the tracks came from, for error messages.
+    """
+
+    points: np.ndarray
+    names: list[str]
+    fps: float
+    confidence: np.ndarray | None = None
+    source: str | None = None
+
+    def __post_init__(self):
+        src = self.source
+        try:
+            pts = np.array(self.points, dtype=float)
+        except (TypeError, ValueError):
+            raise InputError("must be numeric (T, K, 2)", file=src, field="points") from None
+        if pts.ndim != 3 or pts.shape[2] != 2:
+            raise InputError(f"expected shape (T, K, 2), got {pts.shape}", file=src, field="points")
+        names = [str(n) for n in self.names]
+        if len(names) != pts.shape[1]:
+            raise InputError(
+                f"{len(names)} names but points have {pts.shape[1]} columns", file=src, field="names"
+            )
+        dup = sorted({n for n in names if names.count(n) > 1})
+        if dup:
+            raise InputError(f"duplicate names {dup}", file=src, field="names")
+        if not isinstance(self.fps, (int, float, np.floating, np.integer)) or not math.isfinite(self.fps) or self.fps <= 0:
+            raise InputError(f"must be a positive number, got {self.fps!r}", file=src, field="fps")
+        # a point is missing if either coordinate is NaN/inf: make both NaN
+        bad = ~np.all(np.isfinite(pts), axis=2)
+        pts[bad] = np.nan
+        conf = None
+        if self.confidence is not None:
+            try:
+                conf = np.array(self.confidence, dtype=float)
+            except (TypeError, ValueError):
+                raise InputError("must be numeric (T, K)", file=src, field="confidence") from None
+            if conf.shape != pts.shape[:2]:
+                raise InputError(
+                    f"expected shape {pts.shape[:2]} to match points, got {conf.shape}",
+                    file=src,
+                    field="confidence",
+                )
+            conf = np.where(np.isfinite(conf), conf, 0.0)
+            neg = np.argwhere(conf < 0)
+            if neg.size:
+                raise InputError("confidence must be >= 0", file=src, field="confidence", frame=int(neg[0, 0]))
+        self.points, self.names, self.fps, self.confidence = pts, names, float(self.fps), conf
+
+    @property
+    def T(self) -> int:
+        return self.points.shape[0]
+
+    @property
+    def K(self) -> int:
+        return self.points.shape[1]
+
+    @property
+    def times(self) -> np.ndarray:
+        return np.arange(self.T) / self.fps
+
+    @property
+    def observed(self) -> np.ndarray:
+        """(T, K) bool: the point is present (and has non-zero confidence)."""
+        ok = np.all(np.isfinite(self.points), axis=2)
+        if self.confidence is not None:
+            ok &= self.confidence > 0
+        return ok
+
+    def weights(self) -> np.ndarray:
+        """(T, K) per-point weights: confidence (or 1), 0 where missing."""
+        w = np.ones(self.points.shape[:2]) if self.confidence is None else self.confidence.copy()
+        w[~self.observed] = 0.0
+        return w
+
+    def select(self, names: Sequence[str]) -> Tracks:
+        """Tracks of the named points only, in that order."""
+        index = {n: i for i, n in enumerate(self.names)}
+        unknown = [n for n in names if n not in index]
+        if unknown:
+            raise UnknownNameError("track", unknown, self.names, file=self.source, field="names")
+        idx = [index[n] for n in names]
+        conf = None if self.confidence is None else self.confidence[:, idx]
+        return Tracks(self.points[:, idx], list(names), self.fps, conf, self.source)
+
+    def frames(self, start: int = 0, stop: int | None = None, step: int = 1) -> Tracks:
+        """A frame range (``step`` > 1 subsamples and divides fps)."""
+        sl = slice(start, stop, step)
+        conf = None if self.confidence is None else self.confidence[sl]
+        return Tracks(self.points[sl], self.names, self.fps / step, conf, self.source)
+
+    def __repr__(self):
+        miss = 1.0 - self.observed.mean() if self.T and self.K else 0.0
+        return f"Tracks({self.T} frames x {self.K} points at {self.fps:g} fps, {100 * miss:.1f}% missing)"
+
+    # ---- files
+    def save(self, path: str | os.PathLike) -> None:
+        """Write JSON (``.json``) or NPZ (``.npz``) atomically; see ``docs/formats.md``."""
+        from .io.tracks_json import save_tracks
+
+        save_tracks(self, path)
+
+
+def load_tracks(path: str | os.PathLike, *, fps: float | None = None, fmt: str | None = None) -> Tracks:
+    """Read tracks from pinrecon JSON/NPZ, an OpenPose folder, or a COCO keypoint file.
+
+    ``fmt`` is one of ``"json"``, ``"npz"``, ``"openpose"``, ``"coco"``; by default it is
+    guessed (a folder is OpenPose; a JSON file with ``annotations`` or a list is COCO).
+    ``fps`` is required for OpenPose and COCO input, which store no frame rate.
+    """
+    from .io.coco import is_coco_json, load_coco
+    from .io.openpose import load_openpose
+    from .io.tracks_json import load_tracks_json, load_tracks_npz
+
+    path = Path(path)
+    if not path.exists():
+        raise InputError("file not found", file=path)
+    if fmt is None:
+        if path.is_dir():
+            fmt = "openpose"
+        elif path.suffix.lower() == ".npz":
+            fmt = "npz"
+        else:
+            fmt = "coco" if is_coco_json(path) else "json"
+    if fmt == "json":
+        return load_tracks_json(path)
+    if fmt == "npz":
+        return load_tracks_npz(path)
+    if fmt in ("openpose", "coco"):
+        if fps is None:
+            raise InputError(f"{fmt} files store no frame rate: pass fps (--fps)", file=path, field="fps")
+        return load_openpose(path, fps=fps) if fmt == "openpose" else load_coco(path, fps=fps)
+    raise InputError(f"unknown tracks format {fmt!r}", file=path, field="format")
+
+
+# ------------------------------------------------------------------------------ keyframes
+@dataclass(eq=False)
+class Keyframe:
+    """A full or partial 3D key pose at one frame of the tracks.
+
+    Exactly one of ``points`` (keypoint -> world position, metres) and ``joints``
+    (joint name -> value: radians for revolute joints, metres for prismatic; for the
+    free-flyer root a 7-vector ``x y z qx qy qz qw`` or a 3-vector translation) is set.
+    ``sigma`` is the standard deviation of every given value (metres for positions and
+    translations, radians for angles).
+    """
+
+    frame: int
+    sigma: float
+    points: dict[str, np.ndarray] | None = None
+    joints: dict[str, np.ndarray] | None = None
+
+    @property
+    def kind(self) -> str:
+        return "points" if self.points is not None else "joints"
+
+
+@dataclass(eq=False)
+class Keyframes:
+    """An ordered list of keyframes, as read from a keyframes JSON file."""
+
+    keyframes: list[Keyframe] = field(default_factory=list)
+    source: str | None = None
+
+    def __iter__(self):
+        return iter(self.keyframes)
+
+    def __len__(self):
+        return len(self.keyframes)
+
+    def __getitem__(self, i):
+        return self.keyframes[i]
+
+    @classmethod
+    def from_dict(cls, data, source=None) -> Keyframes:
+        if not isinstance(data, Mapping) or "keyframes" not in data:
+            raise InputError("expected an object with a 'keyframes' list", file=source, field="keyframes")
+        items = data["keyframes"]
+        if not isinstance(items, list):
+            raise InputError("must be a list", file=source, field="keyframes")
+        out = []
+        for i, item in enumerate(items):
+            fld = f"keyframes[{i}]"
+            if not isinstance(item, Mapping):
+                raise InputError("must be an object", file=source, field=fld)
+            frame = item.get("frame")
+            if isinstance(frame, bool) or not isinstance(frame, (int, float)) or int(frame) != frame:
+                raise InputError(f"'frame' must be an integer, got {frame!r}", file=source, field=fld)
+            frame = int(frame)
+            sigma = item.get("sigma", 0.01)
+            if isinstance(sigma, bool) or not isinstance(sigma, (int, float)) or not (sigma > 0) or not math.isfinite(sigma):
+                raise InputError(f"'sigma' must be a positive number, got {sigma!r}", file=source, field=fld, frame=frame)
+            has_p, has_j = "points" in item, "joints" in item
+            if has_p == has_j:
+                raise InputError("needs exactly one of 'points' or 'joints'", file=source, field=fld, frame=frame)
+            key = "points" if has_p else "joints"
+            values = item[key]
+            if not isinstance(values, Mapping) or not values:
+                raise InputError(f"'{key}' must be a non-empty object", file=source, field=f"{fld}.{key}", frame=frame)
+            parsed = {}
+            for name, val in values.items():
+                f2 = f"{fld}.{key}.{name}"
+                try:
+                    arr = np.asarray(val, dtype=float)
+                except (TypeError, ValueError):
+                    raise InputError(f"not numeric: {val!r}", file=source, field=f2, frame=frame) from None
+                if key == "points" and arr.shape != (3,):
+                    raise InputError(f"expected [x, y, z], got shape {arr.shape}", file=source, field=f2, frame=frame)
+                if key == "joints" and arr.ndim > 1:
+                    raise InputError(f"expected a number or a list, got shape {arr.shape}", file=source, field=f2, frame=frame)
+                if not np.all(np.isfinite(arr)):
+                    raise InputError("NaN or infinite value", file=source, field=f2, frame=frame)
+                parsed[str(name)] = arr
+            out.append(Keyframe(frame, float(sigma), **{key: parsed}))
+        return cls(out, source)
+
+    def to_dict(self) -> dict:
+        items = []
+        for k in self.keyframes:
+            d = {"frame": k.frame, "sigma": k.sigma}
+            vals = k.points if k.points is not None else k.joints
+            d[k.kind] = {n: (v.tolist() if np.ndim(v) else float(v)) for n, v in vals.items()}
+            items.append(d)
+        return {"keyframes": items}
+
+    def save(self, path: str | os.PathLike) -> None:
+        import json
+
+        from .io.atomic import atomic_write_text
+
+        atomic_write_text(path, json.dumps(self.to_dict(), indent=1))
+
+    def validate(self, figure, n_frames: int) -> None:
+        """Check frames are inside ``[0, n_frames)`` and every name exists in ``figure``."""
+        for i, k in enumerate(self.keyframes):
+            fld = f"keyframes[{i}]"
+            if not 0 <= k.frame < n_frames:
+                raise InputError(
+                    f"frame {k.frame} is outside the sequence (0..{n_frames - 1})",
+                    file=self.source,
+                    field=fld,
+                    frame=k.frame,
+                )
+            if k.points is not None:
+                figure.keypoint_index(list(k.points), file=self.source, field=f"{fld}.points")
+            else:
+                for name, val in k.joints.items():
+                    jid = figure.joint_id(name, file=self.source, field=f"{fld}.joints", frame=k.frame)
+                    nq = figure.model.nqs[jid]
+                    sizes = (3, 7) if (figure.floating and jid == 1) else (nq,)
+                    size = int(np.size(val))
+                    if size not in sizes:
+                        raise InputError(
+                            f"joint {name!r} takes {' or '.join(map(str, sizes))} value(s), got {size}",
+                            file=self.source,
+                            field=f"{fld}.joints.{name}",
+                            frame=k.frame,
+                        )
+
+
+def load_keyframes(path: str | os.PathLike) -> Keyframes:
+    """Read a keyframes JSON file (``docs/formats.md``)."""
+    import json
+
+    path = Path(path)
+    try:
+        data = json.loads(path.read_text())
+    except FileNotFoundError:
+        raise InputError("file not found", file=path) from None
+    except json.JSONDecodeError as exc:
+        raise InputError(f"not valid JSON ({exc.msg} at line {exc.lineno})", file=path) from None
+    return Keyframes.from_dict(data, source=str(path))
+
+
+def keyframes_from_points(frames: Iterable[int], points: np.ndarray, names: Sequence[str], sigma: float) -> Keyframes:
+    """Point keyframes from a (T, K, 3) array at the given frames (NaN points are left out)."""
+    out = []
+    for f in frames:
+        d = {n: points[f, k] for k, n in enumerate(names) if np.all(np.isfinite(points[f, k]))}
+        out.append(Keyframe(int(f), float(sigma), points=d))
+    return Keyframes(out)
+
+
+@dataclass(eq=False)
+class Markers:
+    """3D positions of K named points over T frames (motion-capture markers), metres.
+
+    ``points`` (T, K, 3) with NaN for dropped markers/frames.
+    """
+
+    points: np.ndarray
+    names: list[str]
+    fps: float
+    source: str | None = None
+
+    def __post_init__(self):
+        pts = np.array(self.points, dtype=float)
+        if pts.ndim != 3 or pts.shape[2] != 3:
+            raise InputError(f"expected shape (T, K, 3), got {pts.shape}", file=self.source, field="points")
+        if len(self.names) != pts.shape[1]:
+            raise InputError(f"{len(self.names)} names for {pts.shape[1]} markers", file=self.source, field="names")
+        if not (isinstance(self.fps, (int, float, np.floating, np.integer)) and self.fps > 0):
+            raise InputError(f"must be a positive number, got {self.fps!r}", file=self.source, field="fps")
+        pts[~np.all(np.isfinite(pts), axis=2)] = np.nan
+        self.points, self.names, self.fps = pts, [str(n) for n in self.names], float(self.fps)
+
+    @property
+    def T(self) -> int:
+        return self.points.shape[0]
+
+    @property
+    def observed(self) -> np.ndarray:
+        return np.all(np.isfinite(self.points), axis=2)
