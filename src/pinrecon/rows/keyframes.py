@@ -1,0 +1,84 @@
+"""Joint-space keyframe rows (DiFranco et al. eq. 4), full or partial, root pose included.
+
+For a keyframe f at frame t with standard deviation sigma, over the tangent entries it
+sets (unset parameters have infinite variance: no row):
+
+    r = (f (-) q_t)[set] / sigma = pin.difference(f, q_t)[set] / sigma,
+    dr/dv_t = pin.dDifference(f, q_t, ARG1)[set, set] / sigma.
+
+Joint values are radians (metres for prismatic joints). The free-flyer root takes a
+7-vector ``x y z qx qy qz qw`` (its 6 rows are the SE(3) log, translation in metres and
+rotation in radians) or a 3-vector translation; for the latter
+``r = (t(q_t) - t_f) / sigma`` with ``dt/dv = [R(q_t), 0]`` (a local twist moves the
+root by ``R v``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+
+from .base import RowBlock, RowKind, State
+
+__all__ = ["JointKeyframes"]
+
+
+class JointKeyframes(RowKind):
+    """Rows for a list of joint-space keyframes.
+
+    Parameters
+    ----------
+    figure : the figure.
+    items : list of ``(frame, sigma, {joint name: value})`` with names already validated.
+    """
+
+    name = "keyframe_joints"
+
+    def __init__(self, figure, items):
+        self.figure = figure
+        m = figure.model
+        self.items = []
+        cols_all: set[int] = set()
+        for frame, sigma, values in items:
+            f = pin.neutral(m)
+            set_cols, trans_only = [], None
+            for name, val in values.items():
+                jid = figure.joint_id(name)
+                iq, nq, iv, nv = m.idx_qs[jid], m.nqs[jid], m.idx_vs[jid], m.nvs[jid]
+                val = np.atleast_1d(np.asarray(val, float))
+                if figure.floating and jid == 1 and val.size == 3:
+                    trans_only = val.copy()
+                    set_cols += [0, 1, 2]
+                    continue
+                if figure.floating and jid == 1:
+                    val = val.copy()
+                    val[3:7] /= np.linalg.norm(val[3:7])
+                f[iq : iq + nq] = val
+                set_cols += list(range(iv, iv + nv))
+            self.items.append((int(frame), 1.0 / float(sigma), f, np.array(sorted(set_cols)), trans_only))
+            cols_all.update(set_cols)
+        self.cols = np.array(sorted(cols_all), dtype=int)
+        self.frames = np.array([it[0] for it in self.items], dtype=int)
+
+    def evaluate(self, state: State, jacobian: bool = True) -> RowBlock:
+        m = self.figure.model
+        N, c = len(self.items), len(self.cols)
+        r = np.zeros((N, c))
+        J = np.zeros((N, 1, c, c)) if jacobian else None
+        pos = {col: k for k, col in enumerate(self.cols)}
+        for n, (frame, inv_sigma, f, set_cols, trans_only) in enumerate(self.items):
+            q = state.Q[frame]
+            d = pin.difference(m, f, q)
+            idx = [pos[k] for k in set_cols]
+            r[n, idx] = d[set_cols] * inv_sigma
+            if jacobian:
+                Jd = pin.dDifference(m, f, q, pin.ARG1)
+                J[n, 0][np.ix_(idx, idx)] = Jd[np.ix_(set_cols, set_cols)] * inv_sigma
+            if trans_only is not None:
+                k3 = [pos[k] for k in (0, 1, 2)]
+                r[n, k3] = (q[0:3] - trans_only) * inv_sigma
+                if jacobian:
+                    R = pin.Quaternion(q[3:7]).normalized().matrix()
+                    J[n, 0][np.ix_(k3, k3)] = R * inv_sigma
+                    # the translation rows do not depend on the rotation tangent (at v = 0)
+        return RowBlock(self.frames[:, None], r, J, self.cols, self.name)

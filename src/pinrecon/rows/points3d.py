@@ -1,0 +1,55 @@
+"""3D point rows: the paper's "noise channel" only (3D keyframes and motion-capture markers).
+
+For frame t and keypoint k observed at world position ``X`` (metres):
+``r = sqrt(w) (p_k(q_t) - X) / sigma_m``, Jacobian ``sqrt(w) / sigma_m * J_k(q_t)``.
+Missing markers (NaN) contribute zero rows.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .base import RowBlock, RowKind, State
+
+__all__ = ["Points3D"]
+
+
+class Points3D(RowKind):
+    """Rows pulling keypoints to observed 3D positions.
+
+    Parameters
+    ----------
+    frames : (N,) reconstruction frames.
+    keypoints : (M,) figure keypoint indices.
+    p_world : (N, M, 3) observed positions in metres, NaN where missing.
+    sigma_m : (N,) or scalar standard deviation in metres.
+    name : cost-report label (``"keyframe_points"`` or ``"markers"``).
+    """
+
+    def __init__(self, frames, keypoints, p_world, sigma_m, name="points3d", weights=None):
+        self.name = name
+        self.frames = np.asarray(frames, dtype=int)
+        self.kinematic_frames = self.frames
+        self.keypoints = np.asarray(keypoints, dtype=int)
+        p = np.asarray(p_world, float)
+        observed = np.all(np.isfinite(p), axis=-1)
+        if weights is not None:
+            observed &= np.asarray(weights) > 0
+        sigma = np.broadcast_to(np.asarray(sigma_m, float), self.frames.shape)
+        w = observed / sigma[:, None]
+        if weights is not None:
+            w = w * np.sqrt(np.asarray(weights, float))
+        self.sqrt_w = w
+        self.p_filled = np.where(observed[..., None], p, 0.0)
+        self.observed = observed
+
+    def evaluate(self, state: State, jacobian: bool = True) -> RowBlock:
+        slots = state.slot[self.frames]
+        P = state.points[slots][:, self.keypoints]
+        N, M = len(self.frames), len(self.keypoints)
+        r = ((P - self.p_filled) * self.sqrt_w[..., None]).reshape(N, 3 * M)
+        J = None
+        if jacobian:
+            Jk = state.jacobians[slots][:, self.keypoints] * self.sqrt_w[..., None, None]
+            J = Jk.reshape(N, 1, 3 * M, -1)
+        return RowBlock(self.frames[:, None], r, J, np.arange(state.figure.nv), self.name)
