@@ -81,7 +81,8 @@ def reference_positions(path, scale=1.0):
             R_world[:, j] = R_local
         else:
             P = parents[j]
-            p_world[:, j] = p_world[:, P] + np.einsum("fab,b->fa", R_world[:, P], offsets[j]) + pos
+            # a non-root joint's position channels are in its parent's axes, like its OFFSET
+            p_world[:, j] = p_world[:, P] + np.einsum("fab,fb->fa", R_world[:, P], offsets[j] + pos)
             R_world[:, j] = R_world[:, P] @ R_local
     end_p = np.zeros((n_frames, len(end_names), 3))
     for e, (P, off) in enumerate(zip(end_parents, end_offsets)):

@@ -125,8 +125,11 @@ class Orthographic(Camera):
 
     def __post_init__(self):
         object.__setattr__(self, "R", _check_rotation(self.R))
-        scale = float(self.scale)
-        if not np.isfinite(scale) or scale <= 0:
+        try:
+            scale = float(self.scale)
+        except (TypeError, ValueError):
+            raise InputError(f"must be a positive number, got {self.scale!r}", field="scale") from None
+        if isinstance(self.scale, bool) or not np.isfinite(scale) or scale <= 0:
             raise InputError(f"must be a positive number, got {self.scale!r}", field="scale")
         object.__setattr__(self, "scale", scale)
         object.__setattr__(self, "center", _as_matrix(self.center, (2,), "center", None))

@@ -82,12 +82,25 @@ def load_keypoint_map(path: str | os.PathLike) -> list[Keypoint]:
     return _parse_keypoint_entries(data["keypoints"], file=path)
 
 
+def _xml_file(xml: str | bytes) -> io.BytesIO:
+    """A file object lxml accepts even when the text carries an encoding declaration."""
+    return io.BytesIO(xml.encode() if isinstance(xml, str) else xml)
+
+
+def _xml_text(xml: str | bytes) -> str:
+    """URDF text without the XML declaration (bytes from yourdfpy decoded)."""
+    text = xml.decode() if isinstance(xml, bytes) else xml
+    if text.lstrip().startswith("<?xml"):
+        text = text.split("?>", 1)[1].lstrip()
+    return text
+
+
 def _limits_from_urdf_xml(xml: str) -> dict[str, tuple[float, float]]:
     """Joint name -> (lower, upper) for revolute/prismatic joints whose URDF sets both."""
     import yourdfpy
 
     robot = yourdfpy.URDF.load(
-        io.StringIO(xml), build_scene_graph=False, load_meshes=False, build_collision_scene_graph=False
+        _xml_file(xml), build_scene_graph=False, load_meshes=False, build_collision_scene_graph=False
     ).robot
     out = {}
     for j in robot.joints:
@@ -170,7 +183,13 @@ class Figure:
         if keypoints is None:
             keypoints = [Keypoint(model.names[j], model.names[j]) for j in range(1, model.njoints)]
         elif isinstance(keypoints, (str, os.PathLike)):
-            keypoints = load_keypoint_map(keypoints)
+            kp_file = keypoints
+            try:
+                return cls.from_urdf_string(
+                    xml, load_keypoint_map(kp_file), root=root, name=name, source=source, limits=limits, meta=meta
+                )
+            except InputError as exc:
+                raise exc.located(file=kp_file) from None
         robot_name = name or model.name or "figure"
         fig = cls(
             model,
@@ -220,7 +239,10 @@ class Figure:
         urdf = example_robot_data_robots() / "human_description" / "robots" / "human.urdf"
         maps = {"coco17": "human_coco17.json", "joints": "human_joints.json"}
         kp_path = model_path("keypoints", maps[keypoints]) if keypoints in maps else Path(keypoints)
-        return cls.from_urdf(urdf, load_keypoint_map(kp_path), root=root, name="human")
+        try:
+            return cls.from_urdf(urdf, load_keypoint_map(kp_path), root=root, name="human")
+        except InputError as exc:
+            raise exc.located(file=kp_path) from None
 
     @classmethod
     def from_bvh(cls, path, length_scale: float = 1.0, *, lock: Iterable[str] = ()) -> Figure:
@@ -234,8 +256,16 @@ class Figure:
 
     def with_keypoints(self, keypoints: Iterable[Keypoint] | str | os.PathLike) -> Figure:
         """The same model with another keypoint map."""
+        kp_file = None
         if isinstance(keypoints, (str, os.PathLike)):
+            kp_file = keypoints
             keypoints = load_keypoint_map(keypoints)
+        try:
+            return self._with_keypoints(keypoints)
+        except InputError as exc:
+            raise exc.located(file=kp_file) from None
+
+    def _with_keypoints(self, keypoints):
         return Figure(
             self.model,
             keypoints,
@@ -420,10 +450,9 @@ class Figure:
         """Re-normalise quaternions (in place on a copy)."""
         q = np.array(q, float)
         if q.ndim == 1:
-            pin.normalize(self.model, q)
-            return q
-        for row in q:
-            pin.normalize(self.model, row)
+            return pin.normalize(self.model, q)
+        for i in range(q.shape[0]):
+            q[i] = pin.normalize(self.model, q[i])
         return q
 
     def clamp(self, q: np.ndarray, margin: float = 0.0) -> np.ndarray:
@@ -561,7 +590,7 @@ class Figure:
 
         if self.urdf_xml is None:
             raise InputError("this figure has no URDF to edit", field="urdf")
-        urdf = yourdfpy.URDF.load(io.StringIO(self.urdf_xml), build_scene_graph=False, load_meshes=False)
+        urdf = yourdfpy.URDF.load(_xml_file(self.urdf_xml), build_scene_graph=False, load_meshes=False)
         names = [j.name for j in urdf.robot.joints]
         if isinstance(joint_scales, Mapping):
             unknown = [n for n in joint_scales if n not in names]
@@ -574,7 +603,7 @@ class Figure:
             if j.name in scales and j.origin is not None:
                 j.origin = np.array(j.origin, float)
                 j.origin[:3, 3] *= scales[j.name]
-        return urdf.write_xml_string()
+        return _xml_text(urdf.write_xml_string())
 
     def rescaled(self, joint_scales: Mapping[str, float] | float, keypoint_scales: Mapping[str, float] | None = None) -> Figure:
         """A new figure whose URDF joint origins (and optionally keypoint offsets) are scaled."""

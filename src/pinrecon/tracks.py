@@ -53,7 +53,12 @@ class Tracks:
         dup = sorted({n for n in names if names.count(n) > 1})
         if dup:
             raise InputError(f"duplicate names {dup}", file=src, field="names")
-        if not isinstance(self.fps, (int, float, np.floating, np.integer)) or not math.isfinite(self.fps) or self.fps <= 0:
+        if (
+            isinstance(self.fps, bool)
+            or not isinstance(self.fps, (int, float, np.floating, np.integer))
+            or not math.isfinite(self.fps)
+            or self.fps <= 0
+        ):
             raise InputError(f"must be a positive number, got {self.fps!r}", file=src, field="fps")
         # a point is missing if either coordinate is NaN/inf: make both NaN
         bad = ~np.all(np.isfinite(pts), axis=2)
@@ -213,7 +218,12 @@ class Keyframes:
             if not isinstance(item, Mapping):
                 raise InputError("must be an object", file=source, field=fld)
             frame = item.get("frame")
-            if isinstance(frame, bool) or not isinstance(frame, (int, float)) or int(frame) != frame:
+            if (
+                isinstance(frame, bool)
+                or not isinstance(frame, (int, float))
+                or not math.isfinite(frame)
+                or int(frame) != frame
+            ):
                 raise InputError(f"'frame' must be an integer, got {frame!r}", file=source, field=fld)
             frame = int(frame)
             sigma = item.get("sigma", 0.01)

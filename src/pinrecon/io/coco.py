@@ -28,12 +28,16 @@ COCO_17 = [
 
 
 def is_coco_json(path: str | os.PathLike) -> bool:
-    """Cheap sniff: a COCO file is a list, or an object with 'annotations'."""
+    """A COCO file is a JSON list, or an object with a top-level 'annotations' key.
+
+    The whole file is parsed: real COCO files list thousands of ``images`` before
+    ``annotations``, so a look at the first bytes is not enough.
+    """
     try:
-        head = Path(path).read_text()[:4096].lstrip()
-    except (OSError, UnicodeDecodeError):
+        data = json.loads(Path(path).read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
         return False
-    return head.startswith("[") or '"annotations"' in head
+    return isinstance(data, list) or (isinstance(data, dict) and "annotations" in data)
 
 
 def load_coco(path: str | os.PathLike, *, fps: float) -> Tracks:

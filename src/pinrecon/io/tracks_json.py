@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import os
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -76,6 +77,8 @@ def load_tracks_json(path: str | os.PathLike) -> Tracks:
 
 def load_tracks_npz(path: str | os.PathLike) -> Tracks:
     path = Path(path)
+    if not zipfile.is_zipfile(path):
+        raise InputError("not an NPZ file (an NPZ is a zip archive of .npy arrays)", file=path)
     try:
         with np.load(path, allow_pickle=False) as z:
             data = {k: z[k] for k in z.files}
@@ -84,8 +87,8 @@ def load_tracks_npz(path: str | os.PathLike) -> Tracks:
     for key in ("fps", "names", "points"):
         _require(data, key, path)
     fps = data["fps"]
-    if fps.shape != ():
-        raise InputError(f"must be a scalar, got shape {fps.shape}", file=path, field="fps")
+    if fps.shape != () or fps.dtype.kind not in "iuf":
+        raise InputError(f"must be a number, got {fps.dtype} array of shape {fps.shape}", file=path, field="fps")
     names = [str(n) for n in np.atleast_1d(data["names"])]
     return Tracks(data["points"], names, float(fps), data.get("confidence"), str(path))
 
@@ -103,6 +106,9 @@ def tracks_to_dict(tracks: Tracks) -> dict:
 
 def save_tracks(tracks: Tracks, path: str | os.PathLike) -> None:
     path = Path(path)
+    # validate again (attributes may have been replaced since construction): a file that
+    # load_tracks would reject is never written
+    tracks = Tracks(tracks.points, tracks.names, tracks.fps, tracks.confidence, str(path))
     if path.suffix.lower() == ".npz":
         arrays = {"fps": np.float64(tracks.fps), "names": np.array(tracks.names), "points": tracks.points}
         if tracks.confidence is not None:
