@@ -322,7 +322,8 @@ def figure_from_bvh(clip: BvhClip, length_scale: float = 1.0, *, lock: Iterable[
     ----------
     clip : parsed BVH (:func:`read_bvh`).
     length_scale : metres per file unit (CMU files: 0.056444).
-    lock : BVH joint names whose channels are welded at zero (fixed joints).
+    lock : BVH joint names whose channels are welded at zero (fixed joints), or
+        ``"static"`` for every joint :func:`static_joints` finds.
     """
     import yourdfpy
 
@@ -331,6 +332,10 @@ def figure_from_bvh(clip: BvhClip, length_scale: float = 1.0, *, lock: Iterable[
     length_scale = float(length_scale)
     if not (length_scale > 0 and math.isfinite(length_scale)):
         raise InputError(f"must be a positive number, got {length_scale}", field="length_scale")
+    if isinstance(lock, str):
+        if lock != "static":
+            raise InputError(f"lock must be a list of joint names or 'static', got {lock!r}", field="lock")
+        lock = static_joints(clip)
     lock = list(lock)
     unknown = [n for n in lock if n not in clip.names]
     if unknown:
@@ -380,7 +385,11 @@ def figure_from_bvh(clip: BvhClip, length_scale: float = 1.0, *, lock: Iterable[
 
     robot_name = Path(clip.path).stem if clip.path else "bvh_figure"
     robot = yourdfpy.Robot(name=robot_name, links=links, joints=ujoints)
-    xml = yourdfpy.URDF(robot, build_scene_graph=False, load_meshes=False).write_xml_string()
+    # str without an XML declaration (yourdfpy's write_xml_string returns declared bytes)
+    from lxml import etree
+
+    urdf = yourdfpy.URDF(robot, build_scene_graph=False, load_meshes=False)
+    xml = etree.tostring(urdf.write_xml(), encoding="unicode", pretty_print=True)
     meta = {
         "bvh": {
             "names": clip.names,
@@ -506,8 +515,8 @@ def load_bvh(
 
 # ---------------------------------------------------------------------------- writing
 def _fmt(x: float) -> str:
-    s = f"{x:.6f}"
-    return "0.000000" if s == "-0.000000" else s
+    s = f"{x:.9f}"
+    return s[1:] if s == "-0.000000000" else s
 
 
 def write_bvh(path: str | os.PathLike, figure, q: np.ndarray, fps: float) -> None:
@@ -515,13 +524,17 @@ def write_bvh(path: str | os.PathLike, figure, q: np.ndarray, fps: float) -> Non
 
     A figure built from a BVH writes back with its original joint names, channel orders,
     offsets and end sites, in its own length unit. Other figures are converted by
-    :func:`pinrecon.io.bvh_export.figure_to_bvh_skeleton`.
+    :func:`pinrecon.io.bvh_export.urdf_figure_to_bvh`. Values are written with 9 decimals
+    so positions survive the round trip to well below 1e-6 m.
     """
     q = np.asarray(q, float)
     if q.ndim != 2 or q.shape[1] != figure.nq:
-        raise InputError(f"expected q of shape (frames, {figure.nq}), got {q.shape}", field="q")
+        raise InputError(f"expected q of shape (frames, {figure.nq}), got {q.shape}", file=path, field="q")
     if not (fps > 0):
-        raise InputError(f"must be positive, got {fps}", field="fps")
+        raise InputError(f"must be positive, got {fps}", file=path, field="fps")
+    bad = np.where(~np.all(np.isfinite(q), axis=1))[0]
+    if bad.size:
+        raise InputError("NaN or infinite configuration value", file=path, field="q", frame=int(bad[0]))
     if "bvh" in figure.meta:
         joints, values, unit = _bvh_skeleton_and_values(figure, q)
     else:
@@ -554,7 +567,7 @@ def write_bvh(path: str | os.PathLike, figure, q: np.ndarray, fps: float) -> Non
     lines.append(f"Frames: {q.shape[0]}")
     lines.append(f"Frame Time: {1.0 / fps:.10f}")
     for row in values:
-        lines.append(" ".join(f"{x:.6f}" for x in row))
+        lines.append(" ".join(f"{x:.9f}" for x in row))
     atomic_write_text(path, "\n".join(lines) + "\n")
 
 
@@ -573,7 +586,14 @@ def _bvh_skeleton_and_values(figure, q):
     R = np.array([_quat_xyzw_to_matrix(x) for x in q[:, 3:7]])
     pos = q[:, :3] / unit - root.offset / unit
     rot_axes = "".join(c[0] for c in root.channels if c.endswith("rotation"))
-    eul = matrix_to_euler(rot_axes, R) if rot_axes else np.zeros((F, 0))
+    if rot_axes and len(rot_axes) != 3:
+        raise InputError("root rotation channels must be three distinct axes to export", field="channels")
+    if rot_axes:
+        from .bvh_export import continuous_euler
+
+        eul = continuous_euler(matrix_to_euler(rot_axes, R))  # no 360-degree jumps when turning
+    else:
+        eul = np.zeros((F, 0))
     ri = 0
     block = np.zeros((F, len(root.channels)))
     for k, ch in enumerate(root.channels):
@@ -582,8 +602,6 @@ def _bvh_skeleton_and_values(figure, q):
         else:
             block[:, k] = eul[:, ri]
             ri += 1
-    if rot_axes and len(rot_axes) != 3:
-        raise InputError("root rotation channels must be three distinct axes to export", field="channels")
     cols.append(block)
     for j in joints[1:]:
         block = np.zeros((F, len(j.channels)))
