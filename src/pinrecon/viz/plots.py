@@ -1,0 +1,378 @@
+"""Static pictures of a reconstruction (DiFranco, Cham & Rehg 2001, figures 7-9).
+
+Every function returns the matplotlib :class:`~matplotlib.figure.Figure` it drew (built
+with the object-oriented API on an Agg canvas: headless, not registered with pyplot) and,
+when ``out`` is given, also writes it there (PNG unless the suffix says otherwise;
+atomic; the folder is created).
+
+Artists carry gids so that tests and users can find the data drawn: joint-angle curves
+are Line2D with gid ``"reconstruction"`` / ``"truth"``; stick figures have a Line2D of
+keypoints (gid ``"keypoints"``, ``"truth_keypoints"``) and a LineCollection of bones
+(``"bones"``, ``"truth_bones"``); the reprojection plot has ``"tracks"``,
+``"reprojection"`` and ``"residuals"``.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import warnings
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError, UnknownNameError
+from ._common import (
+    as_motion,
+    check_frames,
+    default_camera,
+    draw_stick,
+    even_frames,
+    find_series,
+    joint_series,
+    new_figure,
+    save_figure,
+    second_view_camera,
+    skeleton,
+    skeleton_points,
+    square_limits,
+    view_unit,
+)
+
+__all__ = [
+    "plot_joint_angles",
+    "plot_reprojection",
+    "plot_stick_strip",
+    "plot_reprojection_error",
+    "plot_result",
+]
+
+
+def _default_joints(series: dict, count: int = 6) -> list[str]:
+    """The ``count`` 1-dof joints that move most (largest range), in figure order."""
+    cand = [(n, v) for n, (v, u) in series.items() if u == "deg" and not n.startswith("root_")]
+    if not cand:
+        cand = [(n, v) for n, (v, u) in series.items() if not n.startswith("root_")]
+    ranges = sorted(cand, key=lambda nv: -float(np.ptp(nv[1])) if len(nv[1]) else 0.0)[:count]
+    chosen = {n for n, _ in ranges}
+    return [n for n in series if n in chosen]
+
+
+def plot_joint_angles(
+    result,
+    joints: Sequence[str] | None = None,
+    truth=None,
+    out: str | os.PathLike | None = None,
+    *,
+    labels: tuple[str, str] = ("reconstruction", "ground truth"),
+    ncols: int | None = None,
+):
+    """Joint-angle curves over time, one small panel per joint (DiFranco et al. fig. 9).
+
+    Parameters
+    ----------
+    result : a :class:`pinrecon.Result` (or BvhMotion, or a result NPZ path).
+    joints : names of 1-dof joints (revolute in degrees, prismatic in metres); root
+        channels ``root_x ... root_rx`` (see :mod:`pinrecon.io.csv_export`) also work.
+        Default: the six joints with the largest range of motion.
+    truth : ground truth or a second result drawn dashed (Result, BvhMotion or path);
+        matched by joint name and drawn against its own time axis.
+    out : PNG path to write.
+    labels : legend labels of the two curves.
+    """
+    motion = as_motion(result, labels[0])
+    series = joint_series(motion)
+    if joints is None:
+        joints = _default_joints(series)
+    if isinstance(joints, str):
+        joints = [joints]
+    cols = [find_series(series, j) for j in joints]
+    unknown = [j for j, c in zip(joints, cols) if c is None]
+    if unknown:
+        valid = [n[:-2] if n.endswith("_m") else n for n in series]
+        raise UnknownNameError("joint", unknown, valid, field="joints")
+    if not cols:
+        raise InputError("no joints to plot", field="joints")
+    tmotion = tseries = None
+    if truth is not None:
+        tmotion = as_motion(truth, labels[1])
+        tseries = joint_series(tmotion)
+        missing = [j for j in joints if find_series(tseries, j) is None]
+        if len(missing) == len(joints):
+            warnings.warn(
+                "the truth shares none of the plotted joints by name; it is not drawn", stacklevel=2
+            )
+    n = len(cols)
+    ncols = ncols or (1 if n == 1 else 2 if n <= 4 else 3)
+    nrows = math.ceil(n / ncols)
+    fig = new_figure((3.4 * ncols, 2.1 * nrows + 0.4))
+    axes = np.atleast_1d(fig.subplots(nrows, ncols, sharex=True, squeeze=False)).ravel()
+    for k, (name, col) in enumerate(zip(joints, cols)):
+        ax = axes[k]
+        values, unit = series[col]
+        (line,) = ax.plot(motion.times, values, "-", color="#1f77b4", lw=1.4, label=labels[0])
+        line.set_gid("reconstruction")
+        if tseries is not None:
+            tcol = find_series(tseries, name)
+            if tcol is not None:
+                tv, _ = tseries[tcol]
+                (tl,) = ax.plot(tmotion.times, tv, "--", color="black", lw=1.1, label=labels[1])
+                tl.set_gid("truth")
+        ax.set_title(name, fontsize=9)
+        ylabel = "angle (deg)" if unit == "deg" else f"position ({unit})" if unit else "value"
+        ax.set_ylabel(ylabel, fontsize=8)
+        ax.tick_params(labelsize=7)
+        ax.grid(True, lw=0.3, alpha=0.6)
+        if k >= n - ncols:
+            ax.set_xlabel("time (s)", fontsize=8)
+    for ax in axes[n:]:
+        ax.set_visible(False)
+    axes[0].legend(fontsize=7, loc="best")
+    if out is not None:
+        save_figure(fig, out)
+    return fig
+
+
+def _resolve_camera(result, camera):
+    cam = camera if camera is not None else getattr(result, "camera", None)
+    return cam
+
+
+def plot_stick_strip(
+    result,
+    frames: Sequence[int] | None = None,
+    camera=None,
+    second_view=None,
+    truth=None,
+    out: str | os.PathLike | None = None,
+    *,
+    up=None,
+):
+    """The 3D stick figure over a strip of frames, from the camera (row 1) and from a
+    second viewpoint (row 2) (DiFranco et al. figs. 7 and 8).
+
+    Parameters
+    ----------
+    result : Result (or BvhMotion, or result NPZ path).
+    frames : frame indices of ``result`` (default: 6 evenly spaced).
+    camera : the viewing camera (default ``result.camera``, else a front view along -Z).
+        Row 1 is in the camera's image coordinates (pixels, y down): the keypoints drawn
+        are exactly ``camera.project(keypoints3d[f])``.
+    second_view : a camera, or an angle in degrees to turn the camera about the world up
+        axis (default 90). Drawn orthographically in metres.
+    truth : ground truth (Result, BvhMotion or path) drawn in grey under the
+        reconstruction, at the frame nearest in time.
+    up : world up axis for the turn (default: the coordinate axis nearest the camera's up).
+    """
+    motion = as_motion(result)
+    T = len(motion.times)
+    frames = even_frames(T, 6) if frames is None else check_frames(frames, T)
+    cam = _resolve_camera(result, camera) or default_camera(motion.figure)
+    cam2 = second_view_camera(cam, second_view, up)
+    sk = skeleton(motion.figure)
+    P = skeleton_points(motion, sk, frames)
+    tmotion = tsk = TP = None
+    if truth is not None:
+        tmotion = as_motion(truth, "ground truth")
+        tsk = skeleton(tmotion.figure)
+        tframes = [tmotion.frame_at(motion.times[f]) for f in frames]
+        TP = skeleton_points(tmotion, tsk, tframes)
+    n = len(frames)
+    fig = new_figure((1.9 * n + 0.6, 4.4))
+    axes = np.atleast_2d(fig.subplots(2, n, squeeze=False))
+    for row, view in enumerate((cam, cam2)):
+        uv = view.project(P)
+        tuv = view.project(TP) if TP is not None else None
+        allpts = uv if tuv is None else np.concatenate([uv, tuv], axis=1)
+        lo, hi = allpts.min(axis=1), allpts.max(axis=1)
+        half = 0.55 * float(np.max(hi - lo)) + 1e-9
+        unit = view_unit(view)
+        for k, f in enumerate(frames):
+            ax = axes[row, k]
+            if tuv is not None:
+                draw_stick(ax, tuv[k], tsk, truth=True, label="ground truth", prefix="truth_")
+            draw_stick(ax, uv[k], sk, label="reconstruction")
+            square_limits(ax, 0.5 * (lo[k] + hi[k]), half)
+            ax.tick_params(labelsize=6)
+            if row == 0:
+                ax.set_title(f"frame {f}, t = {motion.times[f]:.2f} s", fontsize=8)
+            if k == 0:
+                what = "camera view" if row == 0 else "second view"
+                ax.set_ylabel(f"{what} ({unit})", fontsize=8)
+    if truth is not None:
+        axes[0, 0].legend(fontsize=6, loc="lower left")
+    if out is not None:
+        save_figure(fig, out)
+    return fig
+
+
+def plot_reprojection(
+    result,
+    tracks,
+    frames: Sequence[int] | None = None,
+    out: str | os.PathLike | None = None,
+    *,
+    camera=None,
+):
+    """The 2D tracks with the reconstruction's reprojection drawn over them.
+
+    Parameters
+    ----------
+    result : Result (or result NPZ path) with a camera (or pass ``camera``).
+    tracks : :class:`pinrecon.Tracks` or a path :func:`pinrecon.load_tracks` reads.
+    frames : track frame indices (default: 4 evenly spaced); the reconstruction frame at
+        the same time is used.
+    camera : overrides ``result.camera``.
+
+    Tracked points are crosses joined by the figure's keypoint bones
+    (:attr:`pinrecon.Figure.parents_of_keypoints`); the reprojection is the full stick
+    figure (gid ``"reprojection"`` holds ``camera.project`` of the keypoints); thin lines
+    join each tracked point to its reprojection. Image y points down.
+    """
+    from ..tracks import Tracks, load_tracks
+
+    motion = as_motion(result)
+    cam = _resolve_camera(result, camera)
+    if cam is None:
+        raise InputError("the result has no camera; pass camera=...", field="camera")
+    if not isinstance(tracks, Tracks):
+        tracks = load_tracks(tracks)
+    frames = even_frames(tracks.T, 4) if frames is None else check_frames(frames, tracks.T)
+    fig_kp = motion.figure.keypoint_names
+    shared = [n for n in tracks.names if n in set(fig_kp)]
+    if not shared:
+        raise UnknownNameError("track", tracks.names, fig_kp, field="tracks.names")
+    kp_idx = motion.figure.keypoint_index(shared)
+    tr_idx = [tracks.names.index(n) for n in shared]
+    sk = skeleton(motion.figure)
+    pos_in_tracks = {int(k): i for i, k in enumerate(kp_idx)}
+    track_edges = [
+        (pos_in_tracks[a], pos_in_tracks[b])
+        for a, b in sk.keypoint_edges
+        if a in pos_in_tracks and b in pos_in_tracks
+    ]
+    rframes = [motion.frame_at(tracks.times[f]) for f in frames]
+    P = skeleton_points(motion, sk, rframes)
+    n = len(frames)
+    fig = new_figure((3.0 * n + 0.4, 3.6))
+    axes = np.atleast_1d(fig.subplots(1, n, squeeze=False)).ravel()
+    for k, f in enumerate(frames):
+        ax = axes[k]
+        uv = cam.project(P[k])
+        obs = tracks.points[f, tr_idx]
+        ok = np.all(np.isfinite(obs), axis=1)
+        segs = [obs[[a, b]] for a, b in track_edges if ok[a] and ok[b]]
+        from matplotlib.collections import LineCollection
+
+        tb = LineCollection(segs, colors="#2ca02c", linewidths=1.0, linestyles="--", zorder=2)
+        tb.set_gid("track_bones")
+        ax.add_collection(tb)
+        (tl,) = ax.plot(
+            obs[:, 0], obs[:, 1], "x", color="#2ca02c", ms=5, mew=1.3, zorder=5, label="2D tracks"
+        )
+        tl.set_gid("tracks")
+        pts, _ = draw_stick(ax, uv, sk, label="reprojection")
+        pts.set_gid("reprojection")
+        res = [np.stack([obs[i], uv[kp_idx[i]]]) for i in range(len(shared)) if ok[i]]
+        rl = LineCollection(res, colors="#ff7f0e", linewidths=0.8, zorder=4)
+        rl.set_gid("residuals")
+        ax.add_collection(rl)
+        err = np.linalg.norm(obs[ok] - uv[kp_idx[ok]], axis=1)
+        err_txt = f", {err.mean():.1f} px" if err.size else ""
+        ax.set_title(f"frame {f} (t = {tracks.times[f]:.2f} s){err_txt}", fontsize=8)
+        allp = np.concatenate([uv, obs[ok]])
+        lo, hi = allp.min(axis=0), allp.max(axis=0)
+        square_limits(ax, 0.5 * (lo + hi), 0.55 * float(np.max(hi - lo)) + 1e-9)
+        ax.tick_params(labelsize=6)
+        ax.set_xlabel("u (px)", fontsize=8)
+        if k == 0:
+            ax.set_ylabel("v (px, down)", fontsize=8)
+            ax.legend(fontsize=6, loc="lower left")
+    if out is not None:
+        save_figure(fig, out)
+    return fig
+
+
+def plot_reprojection_error(result, out: str | os.PathLike | None = None):
+    """Mean reprojection error per frame (pixels) of a Result, observed frames only."""
+    err = np.asarray(result.reprojection_error_px, float)
+    fig = new_figure((6.0, 2.4))
+    ax = fig.subplots()
+    (line,) = ax.plot(result.times, err, "-", color="#1f77b4", lw=1.0)
+    line.set_gid("reprojection_error")
+    ax.set_xlabel("time (s)", fontsize=8)
+    ax.set_ylabel("reprojection error (px)", fontsize=8)
+    finite = err[np.isfinite(err)]
+    if finite.size:
+        ax.set_title(f"mean {finite.mean():.2f} px, max {finite.max():.2f} px", fontsize=9)
+    ax.grid(True, lw=0.3, alpha=0.6)
+    if out is not None:
+        save_figure(fig, out)
+    return fig
+
+
+def plot_result(
+    result_path_or_result,
+    out_dir: str | os.PathLike,
+    truth=None,
+    tracks=None,
+    *,
+    animation: bool = True,
+    truth_length_scale: float | None = None,
+    truth_skip_frames: int = 0,
+) -> list[Path]:
+    """Write the standard pictures of a result (the ``pinrecon plot`` command).
+
+    Files in ``out_dir`` (created): ``joint_angles.png``, ``stick_strip.png``,
+    ``reprojection.png`` (with ``tracks`` and a camera), ``reprojection_error.png``
+    (when the result has finite errors) and ``animation.gif`` (unless
+    ``animation=False``).
+
+    Parameters
+    ----------
+    result_path_or_result : a result NPZ path or a :class:`pinrecon.Result`.
+    truth : ground truth: a result NPZ, a BVH file, a Result or a BvhMotion. A BVH file
+        is read with ``truth_length_scale`` (metres per file unit), by default the
+        length scale of the result's figure when that came from a BVH, else 1.0; and
+        ``truth_skip_frames`` frames are dropped at its start (1 for CMU's T-pose).
+    tracks : the 2D tracks (path or :class:`pinrecon.Tracks`).
+
+    Returns the list of files written.
+    """
+    from ..reconstruct import load_result
+
+    result = result_path_or_result
+    if isinstance(result, (str, os.PathLike)):
+        result = load_result(result)
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    tmotion = None
+    if truth is not None:
+        scale = truth_length_scale
+        meta = getattr(result.figure, "meta", {}) or {}
+        if scale is None and "bvh" in meta:
+            scale = float(meta["bvh"]["length_scale"])
+        tmotion = as_motion(
+            truth, "ground truth", length_scale=scale, skip_frames=truth_skip_frames
+        )
+    written = [
+        save_figure(plot_joint_angles(result, None, tmotion), out_dir / "joint_angles.png"),
+        save_figure(plot_stick_strip(result, truth=tmotion), out_dir / "stick_strip.png"),
+    ]
+    if tracks is not None:
+        if getattr(result, "camera", None) is None:
+            warnings.warn("the result has no camera: reprojection.png is not drawn", stacklevel=2)
+        else:
+            fig = plot_reprojection(result, tracks)
+            written.append(save_figure(fig, out_dir / "reprojection.png"))
+    err = np.asarray(getattr(result, "reprojection_error_px", np.zeros(0)), float)
+    if np.any(np.isfinite(err)):
+        fig = plot_reprojection_error(result)
+        written.append(save_figure(fig, out_dir / "reprojection_error.png"))
+    if animation:
+        from .animate import animate
+
+        written.append(animate(result, out_dir / "animation.gif", truth=tmotion))
+    return written
+
