@@ -536,7 +536,7 @@ class Figure:
         M = np.empty((T, U, 4, 4))
         model, data = self.model, self.data
         for f in range(T):
-            J_world[f] = pin.computeJointJacobians(model, data, Q[f])
+            J_world[f] = pin.computeJointJacobians(model, data, Q[f]).reshape(6, -1)  # (6,) when nv == 1
             M[f] = self._joint_poses()
         p = self._points_from_poses(M)
         # v_p = v_O + w x p = J_lin v + (J_ang v) x p  ->  J_lin - [p]x J_ang  (WORLD Jacobian)

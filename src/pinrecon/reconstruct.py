@@ -47,12 +47,12 @@ class Weights:
     loss: str = "l2"
     loss_scale_px: float | None = None
     sigma_limits: float = 0.01
-    acc_root_translation: float = 30.0
-    acc_root_rotation: float = 60.0
-    acc_joints: float = 150.0
+    acc_root_translation: float = 5.0
+    acc_root_rotation: float = 10.0
+    acc_joints: float = 10.0
     sigma_markers_m: float = 0.01
     sigma_init_prior: float = 1.0
-    sigma_posture: float | None = 1.0
+    sigma_posture: float | None = 3.0
 
     def __post_init__(self):
         for f in fields(self):

@@ -32,7 +32,7 @@ from .base import RowBlock, RowKind, State
 __all__ = ["Smoothing", "smoothing_sigmas"]
 
 
-def smoothing_sigmas(figure, root_translation=30.0, root_rotation=60.0, joints=150.0) -> np.ndarray:
+def smoothing_sigmas(figure, root_translation=5.0, root_rotation=10.0, joints=10.0) -> np.ndarray:
     """Per-tangent-index acceleration standard deviations (root trans, root rot, joints)."""
     sig = np.full(figure.nv, float(joints))
     if figure.floating:

@@ -1,0 +1,122 @@
+"""Synthetic observations with known answers: the ground truth that tests, benchmarks,
+examples and the demo share.
+
+* :func:`smooth_motion` makes a smooth motion of any figure inside its joint limits.
+* :func:`project_tracks` projects a motion's keypoints through a camera into 2D tracks,
+  with pixel noise, randomly missing points and missing frame ranges.
+* :func:`point_keyframes` samples noisy 3D point keyframes from a motion.
+* :func:`bundled_motion` loads a bundled CMU clip as a figure and its motion.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+
+import numpy as np
+
+from .tracks import Keyframes, Markers, Tracks, keyframes_from_points
+
+__all__ = ["smooth_motion", "project_tracks", "point_keyframes", "noisy_markers", "bundled_motion", "body_keypoints", "BODY_EXCLUDE"]
+
+#: substrings of BVH keypoint names left out of "body" keypoint sets (CMU fingers carry no data)
+BODY_EXCLUDE = ("Finger", "Thumb", "Index")
+
+
+def smooth_motion(figure, n_frames: int, fps: float = 30.0, seed=0, amplitude: float = 0.35, speed_mps: float = 1.0):
+    """A smooth motion (n_frames, nq): every limited joint oscillates around the middle of
+    its range (a sum of two sinusoids, 0.2-1.2 Hz, peak ``amplitude`` of the half range);
+    unlimited joints oscillate by +-0.4 rad; a free-flyer root walks along +x at
+    ``speed_mps`` with a slow yaw about +y and a small bounce."""
+    rng = np.random.default_rng(seed)
+    m = figure.model
+    t = np.arange(n_frames) / fps
+    Q = np.tile(figure.neutral(), (n_frames, 1))
+    for jid in range(2 if figure.floating else 1, m.njoints):
+        if m.nqs[jid] != 1 or m.nvs[jid] != 1:
+            continue
+        iq, iv = m.idx_qs[jid], m.idx_vs[jid]
+        lo, hi = figure.lower_v[iv], figure.upper_v[iv]
+        if np.isfinite(lo) and np.isfinite(hi):
+            mid, half = 0.5 * (lo + hi), 0.5 * (hi - lo)
+        else:
+            mid, half = 0.0, 0.4 / max(amplitude, 1e-9)
+        f1, f2 = rng.uniform(0.2, 1.2, 2)
+        p1, p2 = rng.uniform(0, 2 * np.pi, 2)
+        a = rng.uniform(0.3, 1.0)
+        wave = a * np.sin(2 * np.pi * f1 * t + p1) + (1 - a) * np.sin(2 * np.pi * f2 * t + p2)
+        Q[:, iq] = mid + amplitude * half * wave
+    if figure.floating:
+        from scipy.spatial.transform import Rotation
+
+        yaw = 0.3 * np.sin(2 * np.pi * 0.1 * t + rng.uniform(0, 2 * np.pi))
+        Q[:, 0] = speed_mps * t
+        Q[:, 1] = 0.02 * np.sin(2 * np.pi * 1.8 * t)
+        Q[:, 2] = 0.1 * np.sin(2 * np.pi * 0.15 * t)
+        Q[:, 3:7] = Rotation.from_euler("y", yaw[:, None]).as_quat()
+    return figure.clamp(Q)
+
+
+def project_tracks(
+    figure,
+    Q: np.ndarray,
+    camera,
+    names: Sequence[str] | None = None,
+    *,
+    fps: float,
+    noise_px: float = 1.0,
+    missing: float = 0.0,
+    gaps: Iterable[tuple[int, int]] = (),
+    seed=0,
+) -> Tracks:
+    """2D tracks of keypoints ``names`` (default: all) of motion ``Q`` through ``camera``.
+
+    ``missing`` is the share of points dropped at random; ``gaps`` are frame ranges
+    [start, stop) where every point is missing.
+    """
+    rng = np.random.default_rng(seed)
+    names = list(names) if names is not None else list(figure.keypoint_names)
+    P = figure.keypoints(Q)[:, figure.keypoint_index(names)]
+    uv = camera.project(P) + rng.normal(0.0, noise_px, P.shape[:2] + (2,))
+    if missing > 0:
+        uv[rng.random(P.shape[:2]) < missing] = np.nan
+    for a, b in gaps:
+        uv[a:b] = np.nan
+    return Tracks(uv, names, fps)
+
+
+def point_keyframes(figure, Q, frames, names=None, sigma_m=0.02, noise_m=None, seed=0) -> Keyframes:
+    """3D point keyframes at ``frames``: the true keypoint positions plus Gaussian noise of
+    ``noise_m`` metres (default ``sigma_m``), each keyframe carrying ``sigma_m``."""
+    rng = np.random.default_rng(seed)
+    names = list(names) if names is not None else list(figure.keypoint_names)
+    P = figure.keypoints(Q)[:, figure.keypoint_index(names)]
+    noise = sigma_m if noise_m is None else noise_m
+    return keyframes_from_points(list(frames), P + rng.normal(0.0, noise, P.shape), names, sigma_m)
+
+
+def noisy_markers(figure, Q, names=None, *, fps, noise_m=0.01, missing=0.0, gaps=(), seed=0) -> Markers:
+    """3D motion-capture markers at keypoints ``names`` with noise and dropped frames."""
+    rng = np.random.default_rng(seed)
+    names = list(names) if names is not None else list(figure.keypoint_names)
+    P = figure.keypoints(Q)[:, figure.keypoint_index(names)]
+    P = P + rng.normal(0.0, noise_m, P.shape)
+    if missing > 0:
+        P[rng.random(P.shape[:2]) < missing] = np.nan
+    for a, b in gaps:
+        P[a:b] = np.nan
+    return Markers(P, names, fps)
+
+
+def bundled_motion(name: str = "walk", lock="static"):
+    """A bundled CMU clip (``walk``, ``run``, ``spin``) as (figure, q, fps), T-pose frame
+    dropped, lengths in metres; joints whose channels are always zero are welded."""
+    from ._resources import bundled_clip
+    from .io.bvh import load_bvh
+
+    m = load_bvh(bundled_clip(name), 0.056444, skip_frames=1, lock=lock)
+    return m.figure, m.q, m.fps
+
+
+def body_keypoints(figure) -> list[str]:
+    """The figure's distinct keypoints without fingers/thumbs (CMU: 22 body points)."""
+    return [n for n in figure.distinct_keypoint_names if not any(s in n for s in BODY_EXCLUDE)]
