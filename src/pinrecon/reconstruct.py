@@ -41,6 +41,9 @@ class Weights:
         is turned into a pose (radians).
     sigma_posture : weak prior of every joint towards the rest pose in every frame
         (radians; ``None`` turns it off), see :mod:`pinrecon.rows.posture`.
+    root_group : group on which the root's constant-velocity prior is written,
+        ``"R3xSO3"`` (world translation and orientation apart; default) or ``"SE3"``
+        (the free flyer's screw motion), see :mod:`pinrecon.rows.smoothing`.
     """
 
     sigma_px: float = 2.0
@@ -53,13 +56,17 @@ class Weights:
     sigma_markers_m: float = 0.01
     sigma_init_prior: float = 1.0
     sigma_posture: float | None = 3.0
+    root_group: str = "R3xSO3"
 
     def __post_init__(self):
         for f in fields(self):
             v = getattr(self, f.name)
-            if f.name in ("loss",):
+            if f.name == "loss":
                 if v not in ("l2", "huber", "cauchy"):
                     raise InputError(f"must be 'l2', 'huber' or 'cauchy', got {v!r}", field="weights.loss")
+            elif f.name == "root_group":
+                if v not in ("R3xSO3", "SE3"):
+                    raise InputError(f"must be 'R3xSO3' or 'SE3', got {v!r}", field="weights.root_group")
             elif v is not None and not (isinstance(v, (int, float)) and np.isfinite(v) and v > 0):
                 raise InputError(f"must be a positive number, got {v!r}", field=f"weights.{f.name}")
 
@@ -484,6 +491,7 @@ def reconstruct(
         T,
         1.0 / fps,
         smoothing_sigmas(figure, weights.acc_root_translation, weights.acc_root_rotation, weights.acc_joints),
+        root_group=weights.root_group,
     )
     limits = JointLimits(figure, T, weights.sigma_limits)
     active = _observable(figure, shared, keyframes)
@@ -586,6 +594,7 @@ def reconstruct_markers(
         T,
         1.0 / fps,
         smoothing_sigmas(figure, weights.acc_root_translation, weights.acc_root_rotation, weights.acc_joints),
+        root_group=weights.root_group,
     )
     rows = [mk, JointLimits(figure, T, weights.sigma_limits), smoothing]
     if keyframes is not None:

@@ -1,25 +1,36 @@
 """Constant-velocity smoothing rows (DiFranco et al. eq. 3), written on the Lie group.
 
-With ``d_t = q_{t+1} (-) q_t = pin.difference(q_t, q_{t+1})`` (for the free-flyer root
-the SE(3) log of ``q_t^-1 q_{t+1}``, a body twist), the row for frame t is
+With ``d_t = q_{t+1} (-) q_t`` (Pinocchio's ``difference``) the row for frame t is
 
     r_t = W (d_t - d_{t-1}) / dt^2 * sqrt(dt),    t = 1 .. T-2,
 
-a discrete acceleration, zero exactly when the motion has constant (body) velocity, i.e.
-when ``q_t`` is the geodesic midpoint of its neighbours. ``W = diag(1 / sigma)`` holds
-separate acceleration standard deviations for root translation (m/s^2), root rotation
-(rad/s^2) and joints (rad/s^2). The ``sqrt(dt)`` makes the sum approximate
+a discrete acceleration, zero exactly when the motion has constant velocity on the
+group, i.e. when ``q_t`` is the geodesic midpoint of its neighbours. ``W = diag(1/sigma)``
+holds separate acceleration standard deviations for root translation (m/s^2), root
+rotation (rad/s^2) and joints (rad/s^2). The ``sqrt(dt)`` makes the sum approximate
 ``integral |a / sigma|^2 dt``, so the prior's strength does not change with the frame
 rate (super-sampled reconstructions keep the same weights).
 
 Jacobians, with ``J0_t, J1_t`` the derivatives of ``d_t`` w.r.t. the tangents at
-``q_t`` and ``q_{t+1}`` (``pin.dDifference``):
+``q_t`` and ``q_{t+1}`` (``dDifference``):
 
     dr_t/dv_{t-1} = -W' J0_{t-1},  dr_t/dv_t = W' (J0_t - J1_{t-1}),  dr_t/dv_{t+1} = W' J1_t
 
 (``W' = W sqrt(dt) / dt^2``). For 1-dof Euclidean joints ``J0 = -1``, ``J1 = 1`` and the
-rows are the familiar ``q_{t-1} - 2 q_t + q_{t+1}``: those are returned as a diagonal
-block; the root (and any joint whose group is not R^1) as a dense block.
+rows are the familiar ``q_{t-1} - 2 q_t + q_{t+1}`` (a diagonal block).
+
+**The root** has two choices of group (``root_group``):
+
+* ``"R3xSO3"`` (default): the root's world translation and its orientation are smoothed
+  separately, translation as a vector in world axes (``dp/dv = [R, 0]`` for the free
+  flyer's local twist) and orientation on SO(3) with ``pin.liegroups.SO3``. A walking
+  pelvis turns back and forth while it travels in a straight line; this prior calls that
+  smooth.
+* ``"SE3"``: the free flyer's own group, ``d_t`` the SE(3) log (a body twist). Constant
+  velocity then means a constant screw, which ties the pelvis's yaw oscillation to a
+  curved path. Under an orthographic camera, where the root's depth is seen only
+  through keyframes and this prior, that coupling lets the depth drift (measured in
+  ``bench/bench_engine.py``'s root-group comparison).
 """
 
 from __future__ import annotations
@@ -54,7 +65,9 @@ class Smoothing(RowKind):
 
     name = "smoothing"
 
-    def __init__(self, figure, n_frames, dt, sigma):
+    def __init__(self, figure, n_frames, dt, sigma, root_group="R3xSO3"):
+        if root_group not in ("R3xSO3", "SE3"):
+            raise ValueError(f"root_group must be 'R3xSO3' or 'SE3', got {root_group!r}")
         self.figure = figure
         self.T = int(n_frames)
         m = figure.model
@@ -62,8 +75,13 @@ class Smoothing(RowKind):
         for jid in range(1, m.njoints):
             if m.nqs[jid] == 1 and m.nvs[jid] == 1:
                 euclid[m.idx_vs[jid]] = True
+        self.split_root = figure.floating and root_group == "R3xSO3"
+        if self.split_root:
+            euclid[0:6] = True  # handled by the root block below, not by the generic one
+            self.w_root = (np.sqrt(dt) / dt**2) / np.asarray(sigma, float)[0:6]
+            self._so3 = pin.liegroups.SO3()
         self.dense_cols = np.where(~euclid)[0]
-        self.diag_cols = np.where(euclid)[0]
+        self.diag_cols = np.array([c for c in np.where(euclid)[0] if not (self.split_root and c < 6)], dtype=int)
         self.diag_q = np.array(
             [m.idx_qs[j] for j in range(1, m.njoints) if m.nqs[j] == 1 and m.nvs[j] == 1], dtype=int
         )
@@ -87,6 +105,8 @@ class Smoothing(RowKind):
                 np.array([1.0, -2.0, 1.0])[None, :, None] * self.w_diag, (self.T - 2, 3, len(self.diag_cols))
             )
         blocks.append(RowBlock(self.frames, r, J, self.diag_cols, self.name, diagonal=True))
+        if self.split_root:
+            blocks.append(self._root_block(Q, jacobian))
         if len(self.dense_cols):
             model, c = self.figure.model, self.dense_cols
             D = np.empty((self.T - 1, len(c)))
@@ -104,3 +124,31 @@ class Smoothing(RowKind):
                 Jd = np.stack([-J0[:-1] * w, (J0[1:] - J1[:-1]) * w, J1[1:] * w], axis=1)
             blocks.append(RowBlock(self.frames, r, Jd, c, self.name))
         return blocks
+
+    def _root_block(self, Q, jacobian):
+        """R^3 x SO(3) rows for the free-flyer root: world translation and SO(3) log."""
+        T = self.T
+        p = Q[:, 0:3]
+        r_trans = p[:-2] - 2.0 * p[1:-1] + p[2:]
+        so3 = self._so3
+        D = np.empty((T - 1, 3))
+        J0 = np.empty((T - 1, 3, 3)) if jacobian else None
+        J1 = np.empty((T - 1, 3, 3)) if jacobian else None
+        for t in range(T - 1):
+            a, b = Q[t, 3:7], Q[t + 1, 3:7]
+            D[t] = so3.difference(a, b)
+            if jacobian:
+                J0[t] = so3.dDifference(a, b, pin.ARG0)
+                J1[t] = so3.dDifference(a, b, pin.ARG1)
+        r = np.concatenate([r_trans, D[1:] - D[:-1]], axis=1) * self.w_root
+        J = None
+        if jacobian:
+            J = np.zeros((T - 2, 3, 6, 6))
+            R = np.array([pin.Quaternion(q[3:7]).normalized().matrix() for q in Q])  # (T, 3, 3)
+            for i, c in enumerate((1.0, -2.0, 1.0)):
+                J[:, i, 0:3, 0:3] = c * R[i : T - 2 + i]  # dp/dv_local = R
+            J[:, 0, 3:6, 3:6] = -J0[:-1]
+            J[:, 1, 3:6, 3:6] = J0[1:] - J1[:-1]
+            J[:, 2, 3:6, 3:6] = J1[1:]
+            J *= self.w_root[None, None, :, None]
+        return RowBlock(self.frames, r, J, np.arange(6), self.name)
