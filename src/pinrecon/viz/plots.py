@@ -321,6 +321,7 @@ def plot_result(
     animation: bool = True,
     truth_length_scale: float | None = None,
     truth_skip_frames: int = 0,
+    joints=None,
 ) -> list[Path]:
     """Write the standard pictures of a result (the ``pinrecon plot`` command).
 
@@ -337,6 +338,7 @@ def plot_result(
         length scale of the result's figure when that came from a BVH, else 1.0; and
         ``truth_skip_frames`` frames are dropped at its start (1 for CMU's T-pose).
     tracks : the 2D tracks (path or :class:`pinrecon.Tracks`).
+    joints : joints for ``joint_angles.png`` (default: the six that move most).
 
     Returns the list of files written.
     """
@@ -357,7 +359,7 @@ def plot_result(
             truth, "ground truth", length_scale=scale, skip_frames=truth_skip_frames
         )
     written = [
-        save_figure(plot_joint_angles(result, None, tmotion), out_dir / "joint_angles.png"),
+        save_figure(plot_joint_angles(result, joints, tmotion), out_dir / "joint_angles.png"),
         save_figure(plot_stick_strip(result, truth=tmotion), out_dir / "stick_strip.png"),
     ]
     if tracks is not None:
