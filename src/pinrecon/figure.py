@@ -540,11 +540,12 @@ class Figure:
             M[f] = self._joint_poses()
         p = self._points_from_poses(M)
         # v_p = v_O + w x p = J_lin v + (J_ang v) x p  ->  J_lin - [p]x J_ang  (WORLD Jacobian)
-        J_lin, J_ang = J_world[:, None, :3, :], J_world[:, None, 3:, :]
-        px, py, pz = (p[..., i, None] for i in range(3))
-        wx, wy, wz = J_ang[:, :, 0], J_ang[:, :, 1], J_ang[:, :, 2]
-        cross = np.stack([wy * pz - wz * py, wz * px - wx * pz, wx * py - wy * px], axis=2)
-        J = (J_lin + cross) * self._kp_mask[None, :, None, :]
+        skew = np.zeros((T, self.K, 3, 3))
+        skew[..., 0, 1], skew[..., 0, 2], skew[..., 1, 2] = p[..., 2], -p[..., 1], p[..., 0]
+        skew[..., 1, 0], skew[..., 2, 0], skew[..., 2, 1] = -p[..., 2], p[..., 1], -p[..., 0]
+        J = np.matmul(skew, J_world[:, None, 3:, :])  # (T, K, 3, nv) = -[p]x J_ang
+        J += J_world[:, None, :3, :]
+        J *= self._kp_mask[None, :, None, :]
         return (p[0], J[0]) if single else (p, J)
 
     def frame_placement(self, q: np.ndarray, frame: str) -> pin.SE3:

@@ -22,7 +22,7 @@ from .rows import JointKeyframes, JointLimits, Measurement2D, Points3D, Posture,
 from .solver import SolveResult, SolverOptions, solve
 from .tracks import Keyframe, Keyframes, Markers, Tracks
 
-__all__ = ["Weights", "Result", "reconstruct", "reconstruct_markers", "ReconstructionProblem", "load_result"]
+__all__ = ["Weights", "Result", "reconstruct", "reconstruct_markers", "build_problem", "Setup", "ReconstructionProblem", "load_result"]
 
 
 @dataclass(frozen=True)
@@ -419,7 +419,20 @@ def default_init(figure, n_frames, camera, meas: Measurement2D | None, smoothing
 
 
 # ----------------------------------------------------------------------------- API
-def reconstruct(
+@dataclass
+class Setup:
+    """Everything :func:`reconstruct` solves: the problem (rows on the time grid), the
+    start, the tangent entries the data constrains, and the measurement rows."""
+
+    problem: ReconstructionProblem
+    q0: np.ndarray
+    active: np.ndarray
+    measurement: Measurement2D
+    fps: float
+    camera: object
+
+
+def build_problem(
     figure,
     tracks: Tracks,
     camera,
@@ -429,33 +442,9 @@ def reconstruct(
     weights: Weights | None = None,
     init: np.ndarray | str | None = None,
     seed: str | None = None,
-    options: SolverOptions | None = None,
-    callback: Callable | None = None,
     keypoints: Sequence[str] | None = None,
-) -> Result:
-    """Reconstruct the figure's motion from 2D tracks seen by ``camera``.
-
-    Parameters
-    ----------
-    figure : :class:`pinrecon.Figure`.
-    tracks : :class:`pinrecon.Tracks`; names are matched to the figure's keypoints.
-    camera : :class:`~pinrecon.cameras.Orthographic` or :class:`~pinrecon.cameras.Perspective`.
-    keyframes : optional :class:`~pinrecon.tracks.Keyframes` (frames index the tracks).
-    fps_out : reconstruction rate, an integer multiple of ``tracks.fps`` (super-sampled
-        frames have no observation); default ``tracks.fps``.
-    weights : :class:`Weights`.
-    init : a (T_out, nq) start, or ``"keyframes"``, ``"default"``; default: keyframes
-        when there are any, else the default start. (``seed`` overrides.)
-    seed : ``"planarity"`` to start from the planarity module's seed (hinge axes and
-        depth signs from the 2D tracks; see :mod:`pinrecon.planarity.seed`).
-    options : :class:`~pinrecon.solver.SolverOptions`.
-    callback : called with each iteration report; return True to stop.
-    keypoints : track names to use (default: every track name the figure has).
-
-    Returns
-    -------
-    :class:`Result`
-    """
+) -> Setup:
+    """Validate the inputs, build the rows and the start; see :func:`reconstruct`."""
     weights = weights or Weights()
     if not isinstance(tracks, Tracks):
         raise InputError(f"tracks must be a pinrecon.Tracks, got {type(tracks).__name__}", field="tracks")
@@ -525,10 +514,52 @@ def reconstruct(
         else:
             raise InputError(f"init must be an array, 'keyframes' or 'default', got {init!r}", field="init")
     Q0 = figure.clamp(Q0, margin=1e-3)
+    return Setup(ReconstructionProblem(figure, T, rows), Q0, active, meas, fps, camera)
 
-    problem = ReconstructionProblem(figure, T, rows)
-    res = solve(problem, Q0, options, callback, active=active)
-    return _package(figure, res, problem, meas, fps, camera)
+
+def reconstruct(
+    figure,
+    tracks: Tracks,
+    camera,
+    keyframes: Keyframes | Sequence[Keyframe] | None = None,
+    *,
+    fps_out: float | None = None,
+    weights: Weights | None = None,
+    init: np.ndarray | str | None = None,
+    seed: str | None = None,
+    options: SolverOptions | None = None,
+    callback: Callable | None = None,
+    keypoints: Sequence[str] | None = None,
+) -> Result:
+    """Reconstruct the figure's motion from 2D tracks seen by ``camera``.
+
+    Parameters
+    ----------
+    figure : :class:`pinrecon.Figure`.
+    tracks : :class:`pinrecon.Tracks`; names are matched to the figure's keypoints.
+    camera : :class:`~pinrecon.cameras.Orthographic` or :class:`~pinrecon.cameras.Perspective`.
+    keyframes : optional :class:`~pinrecon.tracks.Keyframes` (frames index the tracks).
+    fps_out : reconstruction rate, an integer multiple of ``tracks.fps`` (super-sampled
+        frames have no observation); default ``tracks.fps``.
+    weights : :class:`Weights`.
+    init : a (T_out, nq) start, or ``"keyframes"``, ``"default"``; default: keyframes
+        when there are any, else the default start (the rest pose placed on the tracks
+        and rigidly fitted). ``seed`` overrides it.
+    seed : ``"planarity"`` to start from the planarity module's seed (hinge axes and
+        depth signs of the limbs from the 2D tracks; see :mod:`pinrecon.planarity.seed`).
+    options : :class:`~pinrecon.solver.SolverOptions`.
+    callback : called with each :class:`~pinrecon.solver.IterationReport`; return True to stop.
+    keypoints : track names to use (default: every track name the figure has).
+
+    Returns
+    -------
+    :class:`Result`
+    """
+    setup = build_problem(
+        figure, tracks, camera, keyframes, fps_out=fps_out, weights=weights, init=init, seed=seed, keypoints=keypoints
+    )
+    res = solve(setup.problem, setup.q0, options, callback, active=setup.active)
+    return _package(figure, res, setup.problem, setup.measurement, setup.fps, camera)
 
 
 def _observable(figure, names, keyframes):

@@ -30,7 +30,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
-import scipy.linalg as sl
+from scipy.linalg.lapack import dpbtrf as _pbtrf
+from scipy.linalg.lapack import dpbtrs as _pbtrs
 
 __all__ = ["SolverOptions", "IterationReport", "SolveResult", "solve", "BandedNormalEquations"]
 
@@ -39,11 +40,22 @@ __all__ = ["SolverOptions", "IterationReport", "SolveResult", "solve", "BandedNo
 class SolverOptions:
     """Termination and damping settings.
 
-    ftol : stop when an accepted step lowers the cost by less than ``ftol * cost``.
+    ftol : stop when an accepted step lowers the cost by less than ``ftol * cost``. The
+        cost is a whitened least-squares cost (in nats), so 1e-5 stops when steps gain a
+        tiny fraction of a nat on typical problems; the tail Levenberg-Marquardt spends
+        creeping along the flat valleys of limb twists beyond that changed the mean
+        per-joint error by 0.2 mm (11.4 -> 11.2 mm) on the 1000-frame benchmark while
+        tripling the time. Use 1e-6 or lower for a strict solve.
     gtol : stop when ``max |g| <= gtol * (1 + cost)`` (first-order optimality).
     xtol : stop when ``|dx| <= xtol * (sqrt(T nv) + |dx|)``.
     max_iterations : cap on linearisations (accepted or not).
     damping : initial lambda (relative to diag(H)).
+    geodesic_acceleration : add Transtrum & Sethna's geodesic acceleration to each
+        Levenberg-Marquardt step (one extra residual evaluation per iteration): the
+        second directional derivative of the residuals along the step corrects it for the
+        curvature of the valley it runs along; steps whose correction is larger than
+        ``geodesic_alpha`` times the step are rejected. ``geodesic_h`` is the relative
+        finite-difference step for that derivative.
     blas_threads : BLAS/LAPACK threads while solving (``None`` leaves them alone). The
         work is many small matrix operations plus one banded Cholesky; OpenBLAS threads
         that spin-wait for a busy core made one 1000-frame solve 30 times slower here
@@ -51,13 +63,16 @@ class SolverOptions:
     """
 
     max_iterations: int = 100
-    ftol: float = 1e-6
+    ftol: float = 1e-5
     gtol: float = 1e-10
     xtol: float = 1e-10
-    damping: float = 1e-4
+    damping: float = 1e-3
     max_damping: float = 1e12
     diag_floor: float = 1e-9
     blas_threads: int | None = 1
+    geodesic_acceleration: bool = True
+    geodesic_h: float = 0.1
+    geodesic_alpha: float = 0.75
 
 
 @dataclass
@@ -100,6 +115,19 @@ def _costs(blocks) -> dict[str, float]:
     out: dict[str, float] = {}
     for b in blocks:
         out[b.name] = out.get(b.name, 0.0) + b.cost
+    return out
+
+
+def _blocks_times(blocks, dx):
+    """J v for every row block, v = dx (T, nv)."""
+    out = []
+    for b in blocks:
+        jv = np.zeros_like(b.r)
+        cols = np.asarray(b.cols)
+        for i in range(b.frames.shape[1]):
+            d = dx[b.frames[:, i]][:, cols]
+            jv += b.J[:, i] * d if b.diagonal else np.einsum("nmc,nc->nm", b.J[:, i], d)
+        out.append(jv)
     return out
 
 
@@ -157,9 +185,15 @@ class BandedNormalEquations:
     @staticmethod
     def _scatter(target, idx_frames, values, idx_rest):
         """target[idx_frames, *idx_rest] += values, safe for repeated frames."""
+        n = len(idx_frames)
+        step = np.diff(idx_frames)
+        increasing = bool(np.all(step > 0))  # row groups list frames in order: no repeats
+        if n and not idx_rest and increasing and idx_frames[-1] - idx_frames[0] == n - 1:
+            target[idx_frames[0] : idx_frames[0] + n] += values  # contiguous frames: a slice
+            return
         nd = max((np.ndim(a) for a in idx_rest), default=1)
         fr = idx_frames.reshape((-1,) + (1,) * (nd - 1)) if idx_rest else idx_frames
-        if len(np.unique(idx_frames)) == len(idx_frames):
+        if increasing or len(np.unique(idx_frames)) == n:
             target[(fr,) + idx_rest] += values
         else:
             np.add.at(target, (fr,) + idx_rest, values)
@@ -192,7 +226,8 @@ class BandedNormalEquations:
                         B = J[:, i] * J[:, j]  # (N, c)
                     else:
                         B = np.matmul(J[:, i].transpose(0, 2, 1), J[:, j])  # (N, c, c)
-                    for d in np.unique(dist):
+                    ds = (dist[0],) if (len(dist) and np.all(dist == dist[0])) else np.unique(dist)
+                    for d in ds:
                         sel = dist == d
                         Bs = B if sel.all() else B[sel]
                         rows_f, cols_f = fi[sel], fj[sel]
@@ -214,6 +249,18 @@ class BandedNormalEquations:
                                 k = pos[np.ix_(cols, cols)]
                                 self._scatter(Dd[int(d)], cols_f, Bs, (k[None, :, :],))
         return D0, Dd, g.reshape(-1)
+
+    def gradient(self, blocks, residuals) -> np.ndarray:
+        """J^T r for the blocks' Jacobians and other residuals ``residuals`` (list of (N, m))."""
+        g = np.zeros((self.T, self.nv))
+        for b, r in zip(blocks, residuals):
+            cols = np.asarray(b.cols)
+            if b.frames.shape[0] == 0 or len(cols) == 0 or r.shape[1] == 0:
+                continue
+            for i in range(b.frames.shape[1]):
+                gi = b.J[:, i] * r if b.diagonal else np.einsum("nmc,nm->nc", b.J[:, i], r)
+                self._scatter(g, b.frames[:, i], gi, (cols[None, :],))
+        return g.reshape(-1)
 
     def band(self, D0, Dd) -> np.ndarray:
         """LAPACK lower band storage ``ab[i - j, j] = H[i, j]`` (i >= j)."""
@@ -267,9 +314,11 @@ def _solve(
         raise FloatingPointError("the initial trajectory gives non-finite residuals")
     normal = BandedNormalEquations(T, nv, blocks)
     frozen = None
+    frozen_flat = None
     if active is not None:
         active = np.asarray(active, bool)
         frozen = np.where(np.tile(~active, T))[0]
+        frozen_flat = _freeze_index(frozen, normal.kd, T * nv)
     lam = opt.damping
     nu = 2.0
     report: list[IterationReport] = []
@@ -280,7 +329,7 @@ def _solve(
         D0, Dd, g = normal.assemble(blocks)
         ab = normal.band(D0, Dd)
         if frozen is not None:
-            _freeze(ab, g, frozen, normal.kd)
+            _freeze(ab, g, frozen, frozen_flat)
         return ab, g
 
     ab, g = linearise(blocks)
@@ -295,13 +344,29 @@ def _solve(
         dscale = np.maximum(diag, opt.diag_floor * max(float(diag.max()), 1e-300))
         ab_d = ab.copy()
         ab_d[0] += lam * dscale
-        try:
-            c = sl.cholesky_banded(ab_d, lower=True, check_finite=False)
-            dx = sl.cho_solve_banded((c, True), -g, check_finite=False)
-            why = None if np.all(np.isfinite(dx)) else "non-finite step"
-        except (np.linalg.LinAlgError, ValueError):
+        c, info = _pbtrf(ab_d, lower=1, overwrite_ab=1)
+        if info == 0:
+            dx, info2 = _pbtrs(c, -g, lower=1)
+            why = None if info2 == 0 and np.all(np.isfinite(dx)) else "non-finite step"
+        else:
             why, dx = "factorisation failed", None
-        step_norm = float(np.linalg.norm(dx)) if why is None else 0.0
+        if why is None and opt.geodesic_acceleration:
+            # second directional derivative of the residuals along v = dx, by finite
+            # differences on the manifold: r'' ~ 2/h ((r(x (+) h v) - r(x)) / h - J v)
+            h = opt.geodesic_h
+            v = dx.reshape(T, nv)
+            r_h = _flatten(problem.evaluate(problem.retract(x, h * v), False))
+            jv = _blocks_times(blocks, v)
+            rpp = [(2.0 / h) * ((bh.r - b.r) / h - j) for bh, b, j in zip(r_h, blocks, jv)]
+            g2 = normal.gradient(blocks, rpp)
+            if frozen is not None:
+                g2[frozen] = 0.0
+            acc = _pbtrs(c, -g2, lower=1)[0]
+            if np.all(np.isfinite(acc)) and np.linalg.norm(acc) <= opt.geodesic_alpha * np.linalg.norm(dx):
+                dx = dx + 0.5 * acc
+            elif np.all(np.isfinite(acc)):
+                why = "geodesic acceleration too large"
+        step_norm = float(np.linalg.norm(dx)) if dx is not None else 0.0
         if why is None:
             x_new = problem.retract(x, dx.reshape(T, nv))
             new_blocks = _flatten(problem.evaluate(x_new, True))
@@ -340,13 +405,19 @@ def _solve(
     return _result(x, cost, costs, it, converged, status, report, t_start, initial_cost)
 
 
-def _freeze(ab, g, frozen, kd):
+def _freeze_index(frozen, kd, n):
+    """Flat indices into the (kd+1, n) band of every entry in the rows/columns ``frozen``."""
+    rows = np.arange(kd + 1)[:, None]
+    col_entries = (rows * n + frozen[None, :]).ravel()  # column j: entries H[j + k, j]
+    cols = frozen[None, :] - rows  # row i: entries H[i, i - k] stored at ab[k, i - k]
+    ok = cols >= 0
+    row_entries = (np.broadcast_to(rows, cols.shape)[ok] * n + cols[ok]).ravel()
+    return np.concatenate([col_entries, row_entries])  # repeats are harmless (all set to 0)
+
+
+def _freeze(ab, g, frozen, flat_index):
     """Pin the tangent entries ``frozen``: zero their rows/cols of H and g, unit diagonal."""
-    ab[:, frozen] = 0.0  # column j: entries H[j + k, j]
-    for k in range(1, kd + 1):  # row i: entries H[i, i - k] stored at ab[k, i - k]
-        cols = frozen - k
-        cols = cols[cols >= 0]
-        ab[k, cols] = 0.0
+    ab.ravel()[flat_index] = 0.0
     ab[0, frozen] = 1.0
     g[frozen] = 0.0
 

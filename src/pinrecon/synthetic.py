@@ -16,7 +16,16 @@ import numpy as np
 
 from .tracks import Keyframes, Markers, Tracks, keyframes_from_points
 
-__all__ = ["smooth_motion", "project_tracks", "point_keyframes", "noisy_markers", "bundled_motion", "body_keypoints", "BODY_EXCLUDE"]
+__all__ = [
+    "smooth_motion",
+    "project_tracks",
+    "point_keyframes",
+    "noisy_markers",
+    "bundled_motion",
+    "body_keypoints",
+    "human_walk",
+    "BODY_EXCLUDE",
+]
 
 #: substrings of BVH keypoint names left out of "body" keypoint sets (CMU fingers carry no data)
 BODY_EXCLUDE = ("Finger", "Thumb", "Index")
@@ -120,3 +129,71 @@ def bundled_motion(name: str = "walk", lock="static"):
 def body_keypoints(figure) -> list[str]:
     """The figure's distinct keypoints without fingers/thumbs (CMU: 22 body points)."""
     return [n for n in figure.distinct_keypoint_names if not any(s in n for s in BODY_EXCLUDE)]
+
+
+#: human-figure joint centres -> CMU BVH joints, for retargeting the bundled walk
+HUMAN_FROM_CMU = {
+    "pelvis": "Hips", "left_hip": "LeftUpLeg", "left_knee": "LeftLeg", "left_ankle": "LeftFoot",
+    "left_toe": "LeftToeBase_end", "right_hip": "RightUpLeg", "right_knee": "RightLeg",
+    "right_ankle": "RightFoot", "right_toe": "RightToeBase_end", "thorax": "Spine1", "neck": "Neck1",
+    "head_top": "Head_end", "left_shoulder": "LeftArm", "left_elbow": "LeftForeArm", "left_wrist": "LeftHand",
+    "right_shoulder": "RightArm", "right_elbow": "RightForeArm", "right_wrist": "RightHand",
+}
+
+
+def human_walk(n_frames: int, fps: float = 30.0):
+    """Real walking on the example-robot-data human figure, of any length.
+
+    The bundled CMU walk is retargeted to ``Figure.human()`` by fitting the figure's joint
+    centres to the clip's joints (:func:`pinrecon.reconstruct_markers`, with the figure's
+    joint limits), at ``fps`` (120 divisible by it). The most repeatable gait cycle (start
+    and end pose and velocity closest) is then looped, treadmill-free: each loop continues
+    from where the last ended. Returns (figure with COCO-17 keypoints, q (n_frames, nq)).
+    """
+    from .figure import Figure
+
+    q_cycle, shift = _human_walk_cycle(float(fps))
+    reps = int(np.ceil(n_frames / len(q_cycle)))
+    loops = []
+    for k in range(reps):
+        c = q_cycle.copy()
+        c[:, :3] += k * shift
+        loops.append(c)
+    Q = np.concatenate(loops)[:n_frames]
+    return Figure.human(), Q
+
+
+_CYCLE_CACHE: dict[float, tuple[np.ndarray, np.ndarray]] = {}
+
+
+def _human_walk_cycle(fps: float):
+    if fps in _CYCLE_CACHE:
+        return _CYCLE_CACHE[fps]
+    from .figure import Figure
+    from .reconstruct import Weights, reconstruct_markers
+
+    step = 120.0 / fps
+    if abs(step - round(step)) > 1e-9 or step < 1:
+        raise ValueError(f"fps must divide 120, got {fps}")
+    bfig, bq, bfps = bundled_motion("walk")
+    bq = bq[:: int(round(step))]
+    human = Figure.human("joints")
+    names = list(HUMAN_FROM_CMU)
+    P = bfig.keypoints(bq)[:, bfig.keypoint_index([HUMAN_FROM_CMU[n] for n in names])]
+    res = reconstruct_markers(human, Markers(P, names, fps), weights=Weights(sigma_markers_m=0.02))
+    q = res.q
+    # most repeatable cycle of 0.8 - 1.4 s: closest joint angles and joint velocities
+    n = len(q)
+    lo, hi = int(0.8 * fps), int(1.4 * fps)
+    best = None
+    for t0 in range(1, n - lo - 1):
+        for t1 in range(t0 + lo, min(t0 + hi, n - 1)):
+            d = np.linalg.norm(human.difference(q[t0], q[t1])[6:])
+            dv = np.linalg.norm(human.difference(q[t0 + 1], q[t1 + 1])[6:] - human.difference(q[t0], q[t1])[6:])
+            score = d + 0.5 * dv
+            if best is None or score < best[0]:
+                best = (score, t0, t1)
+    _, t0, t1 = best
+    shift = q[t1, :3] - q[t0, :3]
+    _CYCLE_CACHE[fps] = (q[t0:t1].copy(), shift)
+    return _CYCLE_CACHE[fps]

@@ -88,7 +88,11 @@ class Measurement2D(RowKind):
         J = None
         if jacobian:
             Jk = state.jacobians[slots][:, self.keypoints]  # (N, M, 3, nv)
-            J = np.matmul(d_uv * scale[..., None, None], Jk).reshape(N, 1, 2 * M, -1)
+            if hasattr(self.camera, "scale"):  # orthographic: d uv / d X is one constant 2x3 matrix
+                J = np.einsum("cx,nmxv->nmcv", self.camera.scale * self.camera.R[:2], Jk) * scale[..., None, None]
+            else:
+                J = np.matmul(d_uv * scale[..., None, None], Jk)
+            J = J.reshape(N, 1, 2 * M, -1)
         return RowBlock(self.frames[:, None], r, J, np.arange(state.figure.nv), self.name, cost_value=cost)
 
     def reprojection_error_px(self, state: State) -> np.ndarray:

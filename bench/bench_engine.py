@@ -1,0 +1,297 @@
+"""Engine speed and memory, and pinrecon against scipy.optimize.least_squares.
+
+The problem: the example-robot-data human figure (nv = 42) with COCO-17 keypoints
+walking (the bundled CMU walk retargeted onto it and looped, `pinrecon.synthetic.
+human_walk`), 30 fps, seen by an orthographic camera 45 degrees from side-on with 1 px
+noise, with all four row kinds of DiFranco et al.: 2D measurements, joint-limit
+barriers, constant-velocity smoothing, and 3D point keyframes (2 cm) every 8 frames,
+plus pinrecon's weak posture prior. Start: the keyframes' poses interpolated (what
+`reconstruct` does).
+
+1. Speed at 1000 frames: time to convergence (pinrecon's own termination: relative
+   cost decrease below 1e-6), iterations, accuracy.
+2. Memory: peak resident memory of a fresh process solving 100, 1000 and 10000 frames.
+3. scipy.optimize.least_squares (method "trf", the sparse Jacobian by finite differences
+   with `jac_sparsity`, default tolerances) on the same residuals from the same start,
+   parametrised by tangent offsets from the start; and the same with pinrecon's analytic
+   sparse Jacobian (to separate the linear algebra from the finite differences). The
+   ratio compares scipy's time with the time pinrecon first reaches scipy's final cost.
+
+Run: ``OPENBLAS_NUM_THREADS=1 python bench/bench_engine.py`` (about 15 minutes; use
+``--scipy-frames 200`` for a quicker scipy comparison, ``--skip-scipy``, ``--skip-memory``).
+Prints markdown tables.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import subprocess
+import sys
+import time
+
+import numpy as np
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+
+def build(n_frames, seed=0):
+    import pinrecon as pr
+    from pinrecon.reconstruct import build_problem
+    from pinrecon.synthetic import human_walk, point_keyframes, project_tracks
+
+    fig, q = human_walk(n_frames, 30.0)
+    d = q[-1, :3] - q[0, :3]
+    d[1] = 0
+    d /= np.linalg.norm(d)
+    side = np.cross([0.0, 1.0, 0.0], d)
+    cam = pr.Orthographic.from_view(np.cos(np.radians(45)) * side + np.sin(np.radians(45)) * d, scale=300.0, center=(640, 360))
+    tracks = project_tracks(fig, q, cam, fps=30.0, noise_px=1.0, seed=seed + 1)
+    keys = point_keyframes(fig, q, range(0, n_frames, 8), sigma_m=0.02, seed=seed + 2)
+    t = time.perf_counter()
+    setup = build_problem(fig, tracks, cam, keys)
+    return fig, q, setup, time.perf_counter() - t
+
+
+def run_pinrecon(setup, ftol=None, max_iterations=100):
+    from pinrecon.solver import SolverOptions, solve
+
+    trace = []
+    t0 = time.perf_counter()
+
+    def cb(rep):
+        trace.append((time.perf_counter() - t0, rep.cost, rep.accepted))
+
+    opts = SolverOptions(max_iterations=max_iterations) if ftol is None else SolverOptions(ftol=ftol, max_iterations=max_iterations)
+    res = solve(setup.problem, setup.q0, opts, callback=cb, active=setup.active)
+    return res, trace
+
+
+def mpjpe_mm(fig, qa, qb):
+    return 1000 * float(np.linalg.norm(fig.keypoints(qa) - fig.keypoints(qb), axis=-1).mean())
+
+
+# --------------------------------------------------------------------------- memory
+def memory_child(n_frames):
+    """Solve n_frames in this (fresh) process and print JSON with time and peak RSS."""
+    import tracemalloc
+
+    base_rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    fig, q, setup, t_build = build(n_frames)
+    after_build = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    tracemalloc.start()
+    res, trace = run_pinrecon(setup)
+    _, peak_traced = tracemalloc.get_traced_memory()
+    tracemalloc.stop()
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    print(
+        json.dumps(
+            dict(
+                frames=n_frames,
+                build_s=t_build,
+                solve_s=res.time,
+                iterations=res.iterations,
+                s_per_iteration=res.time / max(res.iterations, 1),
+                peak_rss_mb=peak / 1024,
+                rss_before_solve_mb=after_build / 1024,
+                rss_at_start_mb=base_rss / 1024,
+                solve_traced_peak_mb=peak_traced / 2**20,
+                mpjpe_mm=mpjpe_mm(fig, res.x, q),
+            )
+        )
+    )
+
+
+def memory_table(sizes):
+    rows = []
+    for n in sizes:
+        out = subprocess.run(
+            [sys.executable, __file__, "--memory-child", str(n)],
+            capture_output=True,
+            text=True,
+            env={**os.environ, "OPENBLAS_NUM_THREADS": "1"},
+        )
+        if out.returncode != 0:
+            raise RuntimeError(out.stderr[-2000:])
+        rows.append(json.loads(out.stdout.strip().splitlines()[-1]))
+    print("\n### Time and memory against the number of frames\n")
+    print("| frames | iterations | solve (s) | s / iteration | peak RSS (MB) | solver's own peak allocation (MB) | MPJPE (mm) |")
+    print("|---:|---:|---:|---:|---:|---:|---:|")
+    for r in rows:
+        print(
+            f"| {r['frames']} | {r['iterations']} | {r['solve_s']:.2f} | {r['s_per_iteration']:.3f} | "
+            f"{r['peak_rss_mb']:.0f} | {r['solve_traced_peak_mb']:.0f} | {r['mpjpe_mm']:.1f} |"
+        )
+    if len(rows) >= 2:
+        a, b = rows[-2], rows[-1]
+        print(
+            f"\nSolver allocation per frame: {1024 * a['solve_traced_peak_mb'] / a['frames']:.0f} KB at {a['frames']} frames, "
+            f"{1024 * b['solve_traced_peak_mb'] / b['frames']:.0f} KB at {b['frames']} frames (linear in T)."
+        )
+    return rows
+
+
+# --------------------------------------------------------------------------- scipy
+class ScipyProblem:
+    """The same residuals as a function of tangent offsets x from the start Q0 (active
+    entries only), for scipy.optimize.least_squares."""
+
+    def __init__(self, setup):
+        import pinocchio as pin
+
+        self.pin = pin
+        self.setup = setup
+        self.prob = setup.problem
+        self.fig = self.prob.figure
+        self.T, self.nv = self.prob.n_frames, self.prob.nv
+        self.mask = np.tile(setup.active, self.T)
+        self.n = int(self.mask.sum())
+        self.nfev = 0
+        blocks = self._blocks(setup.q0, True)
+        self.m = sum(b.r.size for b in blocks)
+        self.pattern = self._pattern(blocks)
+
+    def Q(self, x):
+        dq = np.zeros(self.T * self.nv)
+        dq[self.mask] = x
+        return self.prob.retract(self.setup.q0, dq.reshape(self.T, self.nv))
+
+    def _blocks(self, Q, jac):
+        from pinrecon.solver import _flatten
+
+        return _flatten(self.prob.evaluate(Q, jac))
+
+    def fun(self, x):
+        self.nfev += 1
+        return np.concatenate([b.r.ravel() for b in self._blocks(self.Q(x), False)])
+
+    def _entries(self, blocks, values):
+        rows, cols, vals = [], [], []
+        r0 = 0
+        nv = self.nv
+        for b in blocks:
+            N, m = b.r.shape
+            c = np.asarray(b.cols)
+            for i in range(b.frames.shape[1]):
+                base = (b.frames[:, i] * nv)[:, None]
+                if b.diagonal:
+                    rr = r0 + np.arange(N)[:, None] * m + np.arange(m)[None, :]
+                    cc = base + c[None, :]
+                    rows.append(rr.ravel())
+                    cols.append(cc.ravel())
+                    vals.append((b.J[:, i] if values else np.ones((N, m))).ravel())
+                else:
+                    rr = r0 + np.arange(N)[:, None, None] * m + np.arange(m)[None, :, None]
+                    cc = base[:, :, None] + c[None, None, :]
+                    rr, cc = np.broadcast_arrays(rr, cc)
+                    rows.append(rr.ravel())
+                    cols.append(cc.ravel())
+                    vals.append((b.J[:, i] if values else np.ones((N, m, len(c)))).ravel())
+            r0 += N * m
+        return np.concatenate(rows), np.concatenate(cols), np.concatenate(vals)
+
+    def _pattern(self, blocks):
+        import scipy.sparse as sp
+
+        r, c, _ = self._entries(blocks, values=False)
+        full = sp.csr_matrix((np.ones_like(r, float), (r, c)), shape=(self.m, self.T * self.nv))
+        return (full[:, np.where(self.mask)[0]] != 0).astype(np.int8)
+
+    def jac(self, x):
+        """Analytic sparse Jacobian w.r.t. x: pinrecon's row Jacobians (w.r.t. the local
+        tangent at Q) times d(local tangent)/dx = pin.dIntegrate(q0, dx, ARG1) per frame."""
+        import scipy.sparse as sp
+
+        Q = self.Q(x)
+        blocks = self._blocks(Q, True)
+        r, c, v = self._entries(blocks, values=True)
+        J = sp.csr_matrix((v, (r, c)), shape=(self.m, self.T * self.nv))
+        dq = np.zeros(self.T * self.nv)
+        dq[self.mask] = x
+        dq = dq.reshape(self.T, self.nv)
+        D = [self.pin.dIntegrate(self.fig.model, self.setup.q0[t], dq[t], self.pin.ARG1) for t in range(self.T)]
+        return (J @ sp.block_diag(D, format="csr"))[:, np.where(self.mask)[0]]
+
+
+def scipy_table(n_frames, analytic=True):
+    from scipy.optimize import least_squares
+
+    fig, q, setup, _ = build(n_frames)
+    # pinrecon run to a tight tolerance, so that it can be timed at scipy's final cost
+    res_p, trace = run_pinrecon(setup, ftol=1e-10, max_iterations=300)
+    sp_prob = ScipyProblem(setup)
+    x0 = np.zeros(sp_prob.n)
+    c0 = 0.5 * float(sp_prob.fun(x0) @ sp_prob.fun(x0))
+    rows = [("pinrecon (block-banded LM)", res_p.time, res_p.cost, res_p.iterations, "-", mpjpe_mm(fig, res_p.x, q))]
+    runs = [("scipy trf, jac_sparsity (finite differences)", dict(jac="2-point", jac_sparsity=sp_prob.pattern))]
+    if analytic:
+        runs.append(("scipy trf, pinrecon's analytic sparse Jacobian", dict(jac=sp_prob.jac)))
+    results = []
+    for name, kw in runs:
+        sp_prob.nfev = 0
+        t = time.perf_counter()
+        out = least_squares(sp_prob.fun, x0, method="trf", x_scale="jac", **kw)
+        dt = time.perf_counter() - t
+        cost = float(out.cost)
+        # time pinrecon needed to reach the same cost
+        reach = next((tt for tt, cc, acc in trace if acc and cc <= cost * (1 + 1e-6)), None)
+        results.append((name, dt, cost, out.nfev, out.njev, reach, mpjpe_mm(fig, sp_prob.Q(out.x), q)))
+        rows.append((name, dt, cost, out.nfev, out.njev, mpjpe_mm(fig, sp_prob.Q(out.x), q)))
+    print(f"\n### pinrecon against scipy.optimize.least_squares ({n_frames} frames, {sp_prob.n} unknowns, {sp_prob.m} residuals; start cost {c0:.1f})\n")
+    print("| solver | time (s) | final cost | iterations / evaluations | MPJPE (mm) |")
+    print("|---|---:|---:|---|---:|")
+    print(f"| pinrecon (block-banded Levenberg-Marquardt, ftol 1e-10) | {res_p.time:.2f} | {res_p.cost:.2f} | {res_p.iterations} iterations | {rows[0][5]:.1f} |")
+    for name, dt, cost, nfev, njev, reach, err in results:
+        print(f"| {name} | {dt:.1f} | {cost:.2f} | {nfev} residual + {njev} Jacobian evaluations | {err:.1f} |")
+    print()
+    for name, dt, cost, nfev, njev, reach, err in results:
+        if reach is not None:
+            print(f"- {name}: pinrecon reached scipy's final cost {cost:.2f} after {reach:.2f} s: **{dt / reach:.0f}x faster**.")
+        else:
+            print(
+                f"- {name}: pinrecon's final cost {res_p.cost:.2f} is above scipy's {cost:.2f}; "
+                f"time ratio at pinrecon's convergence {dt / res_p.time:.0f}x."
+            )
+
+
+def speed_table(n_frames):
+    fig, q, setup, t_build = build(n_frames)
+    print(f"\n### Speed: human figure (nv = {fig.nv}), {fig.K} keypoints, {n_frames} frames, all four row kinds\n")
+    print(f"Start (keyframe poses solved and interpolated, rows built): {t_build:.2f} s.\n")
+    print("| termination | solve time | iterations | status | per iteration | final cost | MPJPE |")
+    print("|---|---:|---:|---|---:|---:|---:|")
+    for label, ftol in (("default (ftol 1e-5)", None), ("strict (ftol 1e-6)", 1e-6)):
+        res, trace = run_pinrecon(setup, ftol=ftol)
+        print(
+            f"| {label} | **{res.time:.2f} s** | {res.iterations} | {res.status} | {res.time / res.iterations:.3f} s | "
+            f"{res.cost:.1f} | {mpjpe_mm(fig, res.x, q):.1f} mm |"
+        )
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--frames", type=int, default=1000)
+    ap.add_argument("--scipy-frames", type=int, default=1000)
+    ap.add_argument("--memory-sizes", type=int, nargs="*", default=[100, 1000, 10000])
+    ap.add_argument("--skip-scipy", action="store_true")
+    ap.add_argument("--skip-memory", action="store_true")
+    ap.add_argument("--no-analytic", action="store_true", help="skip scipy with the analytic Jacobian")
+    ap.add_argument("--memory-child", type=int, help=argparse.SUPPRESS)
+    args = ap.parse_args()
+    if args.memory_child:
+        memory_child(args.memory_child)
+        return
+    import platform
+
+    print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}, OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS')}")
+    speed_table(args.frames)
+    if not args.skip_memory:
+        memory_table(args.memory_sizes)
+    if not args.skip_scipy:
+        scipy_table(args.scipy_frames, analytic=not args.no_analytic)
+
+
+if __name__ == "__main__":
+    main()
