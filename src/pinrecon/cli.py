@@ -92,6 +92,8 @@ def cmd_demo(args) -> int:
     summary = run_demo(args.out, frames=args.frames, pictures=not args.no_pictures, callback=progress)
     progress.close()
     print(summary.table())
+    if summary.note:
+        print(f"pinrecon demo: {summary.note}", file=sys.stderr)
     if not args.quiet:
         print(f"\nwrote {len(summary.files)} files to {args.out}/:", file=sys.stderr)
         for f in summary.files:

@@ -40,6 +40,7 @@ class DemoSummary:
     mpjpe_mm: float
     reprojection_px: float
     files: list
+    note: str = ""
 
     def table(self) -> str:
         rows = [
@@ -92,12 +93,18 @@ def run_demo(out_dir="pinrecon-demo", *, frames: int | None = None, pictures: bo
     write_csv(out / "joint_angles.csv", res)
     write_bvh(out / "motion.bvh", figure, res.q, res.fps)
     files += [out / "result.npz", out / "joint_angles.csv", out / "motion.bvh"]
+    note = ""
     if pictures:
-        from .io.bvh import BvhMotion
-        from .viz import plot_result
+        try:
+            import matplotlib  # noqa: F401
+        except ImportError:
+            note = 'no pictures: matplotlib is not installed (pip install "pinrecon[viz]")'
+        else:
+            from .io.bvh import BvhMotion
+            from .viz import plot_result
 
-        truth = BvhMotion(figure, q_true, fps, None)
-        files += plot_result(res, out, truth=truth, tracks=tracks, joints=PLOTTED_JOINTS)
+            truth = BvhMotion(figure, q_true, fps, None)
+            files += plot_result(res, out, truth=truth, tracks=tracks, joints=PLOTTED_JOINTS)
     return DemoSummary(
         frames=len(q_true),
         fps=fps,
@@ -108,4 +115,5 @@ def run_demo(out_dir="pinrecon-demo", *, frames: int | None = None, pictures: bo
         mpjpe_mm=1000.0 * float(err.mean()),
         reprojection_px=float(np.nanmean(res.reprojection_error_px)),
         files=[Path(f) for f in files],
+        note=note,
     )
