@@ -133,6 +133,14 @@ class Result:
     def joint_names(self) -> list[str]:
         return list(self.figure.joint_names)
 
+    @classmethod
+    def from_motion(cls, figure, q, fps, camera=None) -> Result:
+        """A Result for a known motion (ground truth for plots and exports)."""
+        q = figure.check_q(np.asarray(q, float))
+        T = q.shape[0]
+        return cls(figure, q, np.arange(T) / fps, float(fps), figure.keypoints(q), np.full(T, np.nan), None,
+                   np.zeros(T, bool), camera)
+
     def keypoint(self, name: str) -> np.ndarray:
         return self.keypoints3d[:, self.figure.keypoint_index([name])[0]]
 
@@ -628,6 +636,8 @@ def reconstruct_markers(
         root_group=weights.root_group,
     )
     rows = [mk, JointLimits(figure, T, weights.sigma_limits), smoothing]
+    if weights.sigma_posture is not None:
+        rows.append(Posture(figure, T, rest_pose(figure), weights.sigma_posture))
     if keyframes is not None:
         keyframes.validate(figure, markers.T)
         rows += _keyframe_rows(figure, keyframes, factor)
