@@ -219,40 +219,55 @@ def scipy_table(n_frames, analytic=True):
     from scipy.optimize import least_squares
 
     fig, q, setup, _ = build(n_frames)
-    # pinrecon run to a tight tolerance, so that it can be timed at scipy's final cost
-    res_p, trace = run_pinrecon(setup, ftol=1e-10, max_iterations=300)
+    res_d, trace_d = run_pinrecon(setup)  # default termination
+    res_s, trace_s = run_pinrecon(setup, ftol=1e-10, max_iterations=300)  # run on, for the strict comparison
     sp_prob = ScipyProblem(setup)
     x0 = np.zeros(sp_prob.n)
     c0 = 0.5 * float(sp_prob.fun(x0) @ sp_prob.fun(x0))
-    rows = [("pinrecon (block-banded LM)", res_p.time, res_p.cost, res_p.iterations, "-", mpjpe_mm(fig, res_p.x, q))]
     runs = [("scipy trf, jac_sparsity (finite differences)", dict(jac="2-point", jac_sparsity=sp_prob.pattern))]
     if analytic:
         runs.append(("scipy trf, pinrecon's analytic sparse Jacobian", dict(jac=sp_prob.jac)))
     results = []
     for name, kw in runs:
-        sp_prob.nfev = 0
+        trace = []
         t = time.perf_counter()
-        out = least_squares(sp_prob.fun, x0, method="trf", x_scale="jac", **kw)
+
+        def cb(intermediate_result):
+            trace.append((time.perf_counter() - t, float(intermediate_result.cost)))
+
+        out = least_squares(sp_prob.fun, x0, method="trf", x_scale="jac", callback=cb, **kw)
         dt = time.perf_counter() - t
-        cost = float(out.cost)
-        # time pinrecon needed to reach the same cost
-        reach = next((tt for tt, cc, acc in trace if acc and cc <= cost * (1 + 1e-6)), None)
-        results.append((name, dt, cost, out.nfev, out.njev, reach, mpjpe_mm(fig, sp_prob.Q(out.x), q)))
-        rows.append((name, dt, cost, out.nfev, out.njev, mpjpe_mm(fig, sp_prob.Q(out.x), q)))
-    print(f"\n### pinrecon against scipy.optimize.least_squares ({n_frames} frames, {sp_prob.n} unknowns, {sp_prob.m} residuals; start cost {c0:.1f})\n")
+        results.append((name, dt, float(out.cost), out.nfev, out.njev, trace, mpjpe_mm(fig, sp_prob.Q(out.x), q)))
+
+    def first(trace, cost):
+        return next((tt for tt, cc, *acc in trace if (not acc or acc[0]) and cc <= cost), None)
+
+    print(
+        f"\n### pinrecon against scipy.optimize.least_squares ({n_frames} frames, {sp_prob.n} unknowns, "
+        f"{sp_prob.m} residuals; same start, cost {c0:.1f})\n"
+    )
     print("| solver | time (s) | final cost | iterations / evaluations | MPJPE (mm) |")
     print("|---|---:|---:|---|---:|")
-    print(f"| pinrecon (block-banded Levenberg-Marquardt, ftol 1e-10) | {res_p.time:.2f} | {res_p.cost:.2f} | {res_p.iterations} iterations | {rows[0][5]:.1f} |")
-    for name, dt, cost, nfev, njev, reach, err in results:
+    print(f"| pinrecon, default termination | {res_d.time:.2f} | {res_d.cost:.2f} | {res_d.iterations} iterations | {mpjpe_mm(fig, res_d.x, q):.1f} |")
+    print(f"| pinrecon, run on (ftol 1e-10) | {res_s.time:.2f} | {res_s.cost:.2f} | {res_s.iterations} iterations | {mpjpe_mm(fig, res_s.x, q):.1f} |")
+    for name, dt, cost, nfev, njev, trace, err in results:
         print(f"| {name} | {dt:.1f} | {cost:.2f} | {nfev} residual + {njev} Jacobian evaluations | {err:.1f} |")
     print()
-    for name, dt, cost, nfev, njev, reach, err in results:
-        if reach is not None:
-            print(f"- {name}: pinrecon reached scipy's final cost {cost:.2f} after {reach:.2f} s: **{dt / reach:.0f}x faster**.")
+    for name, dt, cost, nfev, njev, trace, err in results:
+        t_reach = first(trace, res_d.cost)
+        if t_reach is not None:
+            print(
+                f"- {name}: reaches pinrecon's converged cost {res_d.cost:.2f} after {t_reach:.1f} s, "
+                f"pinrecon after {res_d.time:.2f} s: **{t_reach / res_d.time:.0f}x**."
+            )
+        p_reach = first(trace_s, cost)
+        if p_reach is not None:
+            print(f"  Its own final cost {cost:.2f}: scipy {dt:.1f} s, pinrecon {p_reach:.2f} s ({dt / p_reach:.0f}x).")
         else:
             print(
-                f"- {name}: pinrecon's final cost {res_p.cost:.2f} is above scipy's {cost:.2f}; "
-                f"time ratio at pinrecon's convergence {dt / res_p.time:.0f}x."
+                f"  Its own final cost {cost:.2f} is {res_s.cost - cost:.2f} below the minimum pinrecon settles in "
+                f"({res_s.cost:.2f}): a neighbouring basin of the same reconstruction (MPJPE {err:.1f} vs "
+                f"{mpjpe_mm(fig, res_s.x, q):.1f} mm)."
             )
 
 

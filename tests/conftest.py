@@ -5,6 +5,11 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+from threadpoolctl import threadpool_limits
+
+# One BLAS thread for the whole session: the tests are many small matrix operations, and
+# OpenBLAS threads that spin-wait on a busy 2-core machine made solves 30x slower here.
+_BLAS_LIMIT = threadpool_limits(limits=1, user_api="blas")
 
 TESTS_DIR = Path(__file__).resolve().parent
 REPO = TESTS_DIR.parent
