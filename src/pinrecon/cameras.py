@@ -17,7 +17,6 @@ from __future__ import annotations
 import json
 import os
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
@@ -254,10 +253,6 @@ def camera_from_dict(data: dict, file=None) -> Camera:
 
 def load_camera(path: str | os.PathLike) -> Camera:
     """Read a camera JSON file (``docs/formats.md``)."""
-    try:
-        data = json.loads(Path(path).read_text())
-    except FileNotFoundError:
-        raise InputError("file not found", file=path) from None
-    except json.JSONDecodeError as exc:
-        raise InputError(f"not valid JSON ({exc.msg} at line {exc.lineno})", file=path) from None
-    return camera_from_dict(data, file=path)
+    from .io.jsonfile import read_json
+
+    return camera_from_dict(read_json(path), file=path)

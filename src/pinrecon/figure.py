@@ -19,7 +19,6 @@ Conventions (see ``docs/derivations.md``):
 from __future__ import annotations
 
 import io
-import json
 import os
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
@@ -70,13 +69,10 @@ def _parse_keypoint_entries(entries, file=None) -> list[Keypoint]:
 
 def load_keypoint_map(path: str | os.PathLike) -> list[Keypoint]:
     """Read a keypoint map JSON: ``{"keypoints": {name: {"frame": f, "offset": [x, y, z]}}}``."""
+    from .io.jsonfile import read_json
+
     path = Path(path)
-    try:
-        data = json.loads(path.read_text())
-    except FileNotFoundError:
-        raise InputError("file not found", file=path) from None
-    except json.JSONDecodeError as exc:
-        raise InputError(f"not valid JSON ({exc.msg} at line {exc.lineno})", file=path) from None
+    data = read_json(path)
     if not isinstance(data, Mapping) or "keypoints" not in data:
         raise InputError("missing top-level 'keypoints' object", file=path, field="keypoints")
     return _parse_keypoint_entries(data["keypoints"], file=path)

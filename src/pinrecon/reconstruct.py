@@ -427,6 +427,34 @@ def default_init(figure, n_frames, camera, meas: Measurement2D | None, smoothing
 
 
 # ----------------------------------------------------------------------------- API
+def measurement_rows(figure, tracks: Tracks, camera, factor: int, weights: Weights) -> Measurement2D:
+    """2D measurement rows for ``tracks`` (names already matched to the figure's keypoints)
+    on a time grid ``factor`` times finer than the tracks' (frame i -> frame i * factor)."""
+    obs_rows = np.where(tracks.observed.any(axis=1))[0]
+    return Measurement2D(
+        camera,
+        obs_rows * factor,
+        figure.keypoint_index(tracks.names),
+        tracks.points[obs_rows],
+        tracks.weights()[obs_rows],
+        sigma_px=weights.sigma_px,
+        loss=weights.loss,
+        loss_scale_px=weights.loss_scale_px,
+    )
+
+
+def prior_rows(figure, n_frames: int, fps: float, weights: Weights) -> tuple[Smoothing, JointLimits]:
+    """The smoothing and joint-limit rows of an ``n_frames`` trajectory at ``fps``."""
+    smoothing = Smoothing(
+        figure,
+        n_frames,
+        1.0 / fps,
+        smoothing_sigmas(figure, weights.acc_root_translation, weights.acc_root_rotation, weights.acc_joints),
+        root_group=weights.root_group,
+    )
+    return smoothing, JointLimits(figure, n_frames, weights.sigma_limits)
+
+
 @dataclass
 class Setup:
     """Everything :func:`reconstruct` solves: the problem (rows on the time grid), the
@@ -471,26 +499,8 @@ def build_problem(
     if keyframes is not None:
         keyframes.validate(figure, T_obs)
 
-    obs = sub.observed
-    obs_rows = np.where(obs.any(axis=1))[0]
-    meas = Measurement2D(
-        camera,
-        obs_rows * factor,
-        figure.keypoint_index(shared),
-        sub.points[obs_rows],
-        sub.weights()[obs_rows],
-        sigma_px=weights.sigma_px,
-        loss=weights.loss,
-        loss_scale_px=weights.loss_scale_px,
-    )
-    smoothing = Smoothing(
-        figure,
-        T,
-        1.0 / fps,
-        smoothing_sigmas(figure, weights.acc_root_translation, weights.acc_root_rotation, weights.acc_joints),
-        root_group=weights.root_group,
-    )
-    limits = JointLimits(figure, T, weights.sigma_limits)
+    meas = measurement_rows(figure, sub, camera, factor, weights)
+    smoothing, limits = prior_rows(figure, T, fps, weights)
     active = _observable(figure, shared, keyframes)
     rows = [meas, limits, smoothing]
     if weights.sigma_posture is not None:
@@ -628,14 +638,8 @@ def reconstruct_markers(
     if len(rows_obs) == 0:
         raise InputError("no marker is observed in any frame", file=markers.source, field="points")
     mk = Points3D(rows_obs * factor, figure.keypoint_index(shared), pts[rows_obs], weights.sigma_markers_m, name="markers")
-    smoothing = Smoothing(
-        figure,
-        T,
-        1.0 / fps,
-        smoothing_sigmas(figure, weights.acc_root_translation, weights.acc_root_rotation, weights.acc_joints),
-        root_group=weights.root_group,
-    )
-    rows = [mk, JointLimits(figure, T, weights.sigma_limits), smoothing]
+    smoothing, limits = prior_rows(figure, T, fps, weights)
+    rows = [mk, limits, smoothing]
     if weights.sigma_posture is not None:
         rows.append(Posture(figure, T, rest_pose(figure), weights.sigma_posture))
     if keyframes is not None:

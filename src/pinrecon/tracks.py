@@ -299,16 +299,10 @@ class Keyframes:
 
 def load_keyframes(path: str | os.PathLike) -> Keyframes:
     """Read a keyframes JSON file (``docs/formats.md``)."""
-    import json
 
-    path = Path(path)
-    try:
-        data = json.loads(path.read_text())
-    except FileNotFoundError:
-        raise InputError("file not found", file=path) from None
-    except json.JSONDecodeError as exc:
-        raise InputError(f"not valid JSON ({exc.msg} at line {exc.lineno})", file=path) from None
-    return Keyframes.from_dict(data, source=str(path))
+    from .io.jsonfile import read_json
+
+    return Keyframes.from_dict(read_json(path), source=str(path))
 
 
 def keyframes_from_points(frames: Iterable[int], points: np.ndarray, names: Sequence[str], sigma: float) -> Keyframes:

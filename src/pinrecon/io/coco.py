@@ -17,6 +17,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..tracks import Tracks
+from .jsonfile import read_json
 
 __all__ = ["load_coco", "is_coco_json", "COCO_17"]
 
@@ -42,10 +43,7 @@ def is_coco_json(path: str | os.PathLike) -> bool:
 
 def load_coco(path: str | os.PathLike, *, fps: float) -> Tracks:
     path = Path(path)
-    try:
-        data = json.loads(path.read_text())
-    except json.JSONDecodeError as exc:
-        raise InputError(f"not valid JSON ({exc.msg} at line {exc.lineno})", file=path) from None
+    data = read_json(path)
     names = COCO_17
     if isinstance(data, list):
         anns, results = data, True

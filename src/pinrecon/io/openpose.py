@@ -9,7 +9,6 @@ with confidence 0 is missing; a frame without people is all missing.
 
 from __future__ import annotations
 
-import json
 import os
 from pathlib import Path
 
@@ -17,6 +16,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..tracks import Tracks
+from .jsonfile import read_json
 
 __all__ = ["load_openpose", "BODY_25", "COCO_18"]
 
@@ -45,10 +45,7 @@ def load_openpose(folder: str | os.PathLike, *, fps: float, person: int = 0) -> 
         raise InputError("no OpenPose *_keypoints.json files in this folder", file=folder)
     rows, confs, layout = [], [], None
     for t, f in enumerate(files):
-        try:
-            data = json.loads(f.read_text())
-        except json.JSONDecodeError as exc:
-            raise InputError(f"not valid JSON ({exc.msg})", file=f, frame=t) from None
+        data = read_json(f, frame=t)
         people = data.get("people") if isinstance(data, dict) else None
         if people is None:
             raise InputError("no 'people' list", file=f, field="people", frame=t)

@@ -17,6 +17,7 @@ import numpy as np
 from ..errors import InputError
 from ..tracks import Tracks
 from .atomic import atomic_path, atomic_write_text
+from .jsonfile import read_json
 
 __all__ = ["load_tracks_json", "load_tracks_npz", "save_tracks", "tracks_to_dict"]
 
@@ -29,10 +30,7 @@ def _require(data, key, path):
 
 def load_tracks_json(path: str | os.PathLike) -> Tracks:
     path = Path(path)
-    try:
-        data = json.loads(path.read_text())
-    except json.JSONDecodeError as exc:
-        raise InputError(f"not valid JSON ({exc.msg} at line {exc.lineno})", file=path) from None
+    data = read_json(path)
     if not isinstance(data, dict):
         raise InputError("expected a JSON object with fps, names, points", file=path)
     fps = _require(data, "fps", path)

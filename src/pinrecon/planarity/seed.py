@@ -377,30 +377,13 @@ def _reference_start(figure, tracks, camera, keyframes, factor, weights=None):
 
 
 def _engine_rows(figure, tracks, camera, factor, weights):
-    from ..rows import JointLimits, Measurement2D, Smoothing, smoothing_sigmas
+    from ..reconstruct import measurement_rows, prior_rows
 
     names = [n for n in tracks.names if n in figure.keypoint_names]
     sub = tracks.select(names)
     T = (sub.T - 1) * factor + 1
-    fps = sub.fps * factor
-    obs_rows = np.where(sub.observed.any(axis=1))[0]
-    meas = Measurement2D(
-        camera,
-        obs_rows * factor,
-        figure.keypoint_index(names),
-        sub.points[obs_rows],
-        sub.weights()[obs_rows],
-        sigma_px=weights.sigma_px,
-        loss=weights.loss,
-        loss_scale_px=weights.loss_scale_px,
-    )
-    smoothing = Smoothing(
-        figure,
-        T,
-        1.0 / fps,
-        smoothing_sigmas(figure, weights.acc_root_translation, weights.acc_root_rotation, weights.acc_joints),
-    )
-    limits = JointLimits(figure, T, weights.sigma_limits)
+    meas = measurement_rows(figure, sub, camera, factor, weights)
+    smoothing, limits = prior_rows(figure, T, sub.fps * factor, weights)
     return meas, smoothing, limits, T
 
 

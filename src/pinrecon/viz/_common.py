@@ -12,11 +12,12 @@ import os
 import re
 import weakref
 from collections.abc import Sequence
-from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+
+from ..io.atomic import atomic_path
 
 from ..errors import InputError, PinreconError
 
@@ -48,26 +49,11 @@ def new_figure(figsize, dpi: float = 100):
     return fig
 
 
-@contextmanager
-def atomic_output(path: str | os.PathLike):
-    """A temporary sibling of ``path`` with the same suffix (writers pick the format from
-    it); on success it replaces ``path``. Creates the folder."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.stem}.tmp{os.getpid()}{path.suffix}")
-    try:
-        yield tmp
-        os.replace(tmp, path)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
-
-
 def save_figure(fig, out: str | os.PathLike, dpi: float | None = None) -> Path:
     """Save ``fig`` as PNG (or the format of ``out``'s suffix), atomically."""
     out = Path(out)
     fmt = out.suffix.lstrip(".").lower() or "png"
-    with atomic_output(out) as tmp:
+    with atomic_path(out) as tmp:
         fig.savefig(tmp, format=fmt, dpi=dpi)
     return out
 

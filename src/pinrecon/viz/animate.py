@@ -11,10 +11,10 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
+from ..io.atomic import atomic_path
 from ._common import (
     MissingDependencyError,
     as_motion,
-    atomic_output,
     check_frames,
     default_camera,
     draw_stick,
@@ -137,7 +137,7 @@ def animate(
     animated = [stamp]
     for _, _, arts, t_art in artists:
         animated += list(arts) + (list(t_art) if t_art is not None else [])
-    with atomic_output(out_path) as tmp:
+    with atomic_path(out_path) as tmp:
         if suffix == ".gif":
             _write_gif(tmp, _blit_frames(fig, animated, update, len(idx)), fps)
         else:
