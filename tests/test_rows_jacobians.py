@@ -128,3 +128,25 @@ def test_robust_loss_gradient_is_exact(setting, loss):
     # rho(s) <= s for both losses: the robust cost is below the plain least-squares cost
     l2 = Measurement2D(ortho, np.arange(T), k, tr.points, np.ones((T, len(k))))
     assert b.cost < _evaluate(l2, fig, Q, False)[0].cost
+
+
+def test_vectorised_so3_difference_equals_pinocchio():
+    import pinocchio as pin
+    from scipy.spatial.transform import Rotation
+
+    from pinrecon.rows.smoothing import _jlog3
+
+    so3 = pin.liegroups.SO3()
+    rng = np.random.default_rng(4)
+    qa = np.array([so3.random() for _ in range(40)])
+    qb = np.array([so3.random() for _ in range(40)])
+    qb[:4] = qa[:4] + 1e-7 * rng.normal(size=(4, 4))  # tiny relative rotations
+    qb[:4] /= np.linalg.norm(qb[:4], axis=1, keepdims=True)
+    rel = Rotation.from_quat(qa).inv() * Rotation.from_quat(qb)
+    d = rel.as_rotvec()
+    J1 = _jlog3(d)
+    J0 = -J1 @ np.swapaxes(rel.as_matrix(), 1, 2)
+    for k in range(40):
+        assert np.allclose(d[k], so3.difference(qa[k], qb[k]), atol=1e-12)
+        assert np.allclose(J0[k], so3.dDifference(qa[k], qb[k], pin.ARG0), atol=1e-10)
+        assert np.allclose(J1[k], so3.dDifference(qa[k], qb[k], pin.ARG1), atol=1e-10)

@@ -89,7 +89,7 @@ class Measurement2D(RowKind):
         if jacobian:
             Jk = state.jacobians[slots][:, self.keypoints]  # (N, M, 3, nv)
             if hasattr(self.camera, "scale"):  # orthographic: d uv / d X is one constant 2x3 matrix
-                J = np.einsum("cx,nmxv->nmcv", self.camera.scale * self.camera.R[:2], Jk) * scale[..., None, None]
+                J = np.matmul(self.camera.scale * self.camera.R[:2], Jk) * scale[..., None, None]
             else:
                 J = np.matmul(d_uv * scale[..., None, None], Jk)
             J = J.reshape(N, 1, 2 * M, -1)

@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import numpy as np
 import pinocchio as pin
+from scipy.spatial.transform import Rotation
 
 from .base import RowBlock, RowKind, State
 
@@ -79,7 +80,6 @@ class Smoothing(RowKind):
         if self.split_root:
             euclid[0:6] = True  # handled by the root block below, not by the generic one
             self.w_root = (np.sqrt(dt) / dt**2) / np.asarray(sigma, float)[0:6]
-            self._so3 = pin.liegroups.SO3()
         self.dense_cols = np.where(~euclid)[0]
         self.diag_cols = np.array([c for c in np.where(euclid)[0] if not (self.split_root and c < 6)], dtype=int)
         self.diag_q = np.array(
@@ -126,25 +126,25 @@ class Smoothing(RowKind):
         return blocks
 
     def _root_block(self, Q, jacobian):
-        """R^3 x SO(3) rows for the free-flyer root: world translation and SO(3) log."""
+        """R^3 x SO(3) rows for the free-flyer root: world translation and SO(3) log.
+
+        The SO(3) difference and its Jacobians are evaluated for all frames at once; they
+        equal ``pin.liegroups.SO3().difference`` / ``dDifference`` (tested):
+        ``d = log(R_a^T R_b)``, ``dd/dw_b = Jlog(d)``, ``dd/dw_a = -Jlog(d) (R_a^T R_b)^T``.
+        """
         T = self.T
         p = Q[:, 0:3]
         r_trans = p[:-2] - 2.0 * p[1:-1] + p[2:]
-        so3 = self._so3
-        D = np.empty((T - 1, 3))
-        J0 = np.empty((T - 1, 3, 3)) if jacobian else None
-        J1 = np.empty((T - 1, 3, 3)) if jacobian else None
-        for t in range(T - 1):
-            a, b = Q[t, 3:7], Q[t + 1, 3:7]
-            D[t] = so3.difference(a, b)
-            if jacobian:
-                J0[t] = so3.dDifference(a, b, pin.ARG0)
-                J1[t] = so3.dDifference(a, b, pin.ARG1)
+        rot = Rotation.from_quat(Q[:, 3:7])
+        rel = rot[:-1].inv() * rot[1:]
+        D = rel.as_rotvec()  # (T-1, 3)
         r = np.concatenate([r_trans, D[1:] - D[:-1]], axis=1) * self.w_root
         J = None
         if jacobian:
+            J1 = _jlog3(D)
+            J0 = -J1 @ np.swapaxes(rel.as_matrix(), 1, 2)
             J = np.zeros((T - 2, 3, 6, 6))
-            R = np.array([pin.Quaternion(q[3:7]).normalized().matrix() for q in Q])  # (T, 3, 3)
+            R = rot.as_matrix()  # (T, 3, 3)
             for i, c in enumerate((1.0, -2.0, 1.0)):
                 J[:, i, 0:3, 0:3] = c * R[i : T - 2 + i]  # dp/dv_local = R
             J[:, 0, 3:6, 3:6] = -J0[:-1]
@@ -152,3 +152,20 @@ class Smoothing(RowKind):
             J[:, 2, 3:6, 3:6] = J1[1:]
             J *= self.w_root[None, None, :, None]
         return RowBlock(self.frames, r, J, np.arange(6), self.name)
+
+
+def _skew(w):
+    S = np.zeros(w.shape[:-1] + (3, 3))
+    S[..., 0, 1], S[..., 0, 2], S[..., 1, 2] = -w[..., 2], w[..., 1], -w[..., 0]
+    S[..., 1, 0], S[..., 2, 0], S[..., 2, 1] = w[..., 2], -w[..., 1], w[..., 0]
+    return S
+
+
+def _jlog3(w):
+    """Jacobian of log3 at exp(w) (the inverse right Jacobian of SO(3)), for (..., 3)."""
+    th = np.linalg.norm(w, axis=-1)
+    S = _skew(w)
+    small = th < 1e-4
+    ths = np.where(small, 1.0, th)
+    coef = np.where(small, 1.0 / 12.0 + th**2 / 720.0, 1.0 / ths**2 - (1.0 + np.cos(ths)) / (2.0 * ths * np.sin(ths)))
+    return np.eye(3) + 0.5 * S + coef[..., None, None] * (S @ S)
