@@ -28,7 +28,7 @@ __all__ = ["Weights", "Result", "reconstruct", "reconstruct_markers", "build_pro
 @dataclass(frozen=True)
 class Weights:
     """Standard deviations that weight each row kind (all have defaults tuned on real
-    human motion; see ``docs/weights.md``).
+    human motion; see ``docs/derivations.md``, section 6).
 
     sigma_px : 2D measurement noise, pixels.
     loss, loss_scale_px : ``"l2"`` (default), or a robust ``"huber"``/``"cauchy"`` loss

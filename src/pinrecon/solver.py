@@ -18,7 +18,7 @@ and time are linear in T.
 
 Damping is Levenberg-Marquardt's ``(H + lambda D) dx = -g`` with ``D`` the (floored)
 diagonal of H (the paper's stabilising ``kI``, scaled and made adaptive with
-Nielsen's update). A step is accepted only if it lowers the cost and gives finite
+Nielsen's update), optionally with geodesic acceleration. A step is accepted only if it lowers the cost and gives finite
 residuals; otherwise it is rejected, said so in the report, and the damping grows.
 The returned trajectory is never NaN.
 """
@@ -50,14 +50,14 @@ class SolverOptions:
     xtol : stop when ``|dx| <= xtol * (sqrt(T nv) + |dx|)``.
     max_iterations : cap on linearisations (accepted or not).
     damping : initial lambda (relative to diag(H)).
-    geodesic_acceleration : Transtrum & Sethna's geodesic acceleration (one extra
-        residual evaluation per iteration): the second directional derivative of the
-        residuals along the step corrects it for the curvature of the valley it runs
-        along; steps whose correction is larger than ``geodesic_alpha`` times the step are
-        rejected. It costs about a third of an iteration; on the 1000-frame benchmark it
-        brings nothing (1.9-2.2 s with it, 1.3 s without, same result), on the fast run clip
-        it found better minima (mean per-joint error 44 vs 51 mm over three views).
-        ``geodesic_h`` is the relative finite-difference step for that derivative.
+    geodesic_acceleration : add Transtrum & Sethna's geodesic acceleration to each step
+        (one extra residual evaluation per iteration): the second directional derivative
+        of the residuals along the step corrects it for the curvature of the valley it
+        runs along; steps whose correction is larger than ``geodesic_alpha`` times the step
+        are rejected (``geodesic_h``: the relative finite-difference step). Off by default:
+        on the 1000-frame benchmark it costs 60 % more time for the same result (2.1 vs
+        1.3 s); on fast motion it can find better minima (the run clip: 44 vs 51 mm mean
+        per-joint error over three views, though not in every view), so try it there.
     blas_threads : BLAS/LAPACK threads while solving (``None`` leaves them alone). The
         work is many small matrix operations plus one banded Cholesky; OpenBLAS threads
         that spin-wait for a busy core made one 1000-frame solve 30 times slower here
@@ -72,7 +72,7 @@ class SolverOptions:
     max_damping: float = 1e12
     diag_floor: float = 1e-9
     blas_threads: int | None = 1
-    geodesic_acceleration: bool = True
+    geodesic_acceleration: bool = False
     geodesic_h: float = 0.1
     geodesic_alpha: float = 0.75
 
