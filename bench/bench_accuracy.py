@@ -16,16 +16,7 @@ import numpy as np
 
 import pinrecon as pr
 from pinrecon.planarity import limb_flip_rate
-from pinrecon.synthetic import body_keypoints, bundled_motion, noisy_markers, point_keyframes, project_tracks
-
-
-def side_camera(q, azimuth_deg):
-    d = q[-1, :3] - q[0, :3]
-    d[1] = 0.0
-    d /= np.linalg.norm(d)
-    side = np.cross([0.0, 1.0, 0.0], d)
-    view = np.cos(np.radians(azimuth_deg)) * side + np.sin(np.radians(azimuth_deg)) * d
-    return pr.Orthographic.from_view(view, scale=300.0, center=(500.0, 500.0))
+from pinrecon.synthetic import body_keypoints, bundled_motion, noisy_markers, point_keyframes, project_tracks, side_camera
 
 
 def main():

@@ -38,16 +38,11 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 
 def build(n_frames, seed=0):
-    import pinrecon as pr
     from pinrecon.reconstruct import build_problem
-    from pinrecon.synthetic import human_walk, point_keyframes, project_tracks
+    from pinrecon.synthetic import human_walk, point_keyframes, project_tracks, side_camera
 
     fig, q = human_walk(n_frames, 30.0)
-    d = q[-1, :3] - q[0, :3]
-    d[1] = 0
-    d /= np.linalg.norm(d)
-    side = np.cross([0.0, 1.0, 0.0], d)
-    cam = pr.Orthographic.from_view(np.cos(np.radians(45)) * side + np.sin(np.radians(45)) * d, scale=300.0, center=(640, 360))
+    cam = side_camera(q, 45.0, scale=300.0, center=(640, 360))
     tracks = project_tracks(fig, q, cam, fps=30.0, noise_px=1.0, seed=seed + 1)
     keys = point_keyframes(fig, q, range(0, n_frames, 8), sigma_m=0.02, seed=seed + 2)
     t = time.perf_counter()

@@ -20,6 +20,7 @@ from pinrecon.synthetic import (
     noisy_markers,
     point_keyframes,
     project_tracks,
+    side_camera,
 )
 from pinrecon.tracks import Keyframe, Keyframes
 
@@ -129,13 +130,8 @@ def walk():
     return fig, q, fps, names
 
 
-def _side_camera(q, azimuth_deg=45.0, scale=300.0):
-    d = q[-1, :3] - q[0, :3]
-    d[1] = 0.0
-    d /= np.linalg.norm(d)
-    side = np.cross([0.0, 1.0, 0.0], d)
-    view = np.cos(np.radians(azimuth_deg)) * side + np.sin(np.radians(azimuth_deg)) * d
-    return pr.Orthographic.from_view(view, scale=scale, center=(500.0, 500.0))
+def _side_camera(q, azimuth_deg=45.0):
+    return side_camera(q, azimuth_deg, scale=300.0, center=(500.0, 500.0))
 
 
 def _mpjpe_mm(fig, names, q_est, q_true):

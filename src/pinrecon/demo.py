@@ -55,20 +55,12 @@ class DemoSummary:
         return "\n".join(f"  {k:<{w}}  {v}" for k, v in rows)
 
 
-def _side_view(q, azimuth_deg):
-    d = q[-1, :3] - q[0, :3]
-    d[1] = 0.0
-    d /= np.linalg.norm(d)
-    side = np.cross([0.0, 1.0, 0.0], d)
-    return np.cos(np.radians(azimuth_deg)) * side + np.sin(np.radians(azimuth_deg)) * d
-
-
 def run_demo(out_dir="pinrecon-demo", *, frames: int | None = None, pictures: bool = True, callback=None, seed: int = 0):
     """Run the demo; returns a :class:`DemoSummary`. ``frames`` shortens the clip (tests)."""
-    from . import Orthographic, reconstruct
+    from . import reconstruct
     from .io.bvh import write_bvh
     from .io.csv_export import write_csv
-    from .synthetic import body_keypoints, bundled_motion, point_keyframes, project_tracks
+    from .synthetic import body_keypoints, bundled_motion, point_keyframes, project_tracks, side_camera
 
     t0 = time.perf_counter()
     out = Path(out_dir)
@@ -77,7 +69,7 @@ def run_demo(out_dir="pinrecon-demo", *, frames: int | None = None, pictures: bo
     if frames is not None:
         q_true = q_true[:frames]
     names = body_keypoints(figure)
-    camera = Orthographic.from_view(_side_view(q_true, 45.0), scale=300.0, center=(640.0, 360.0))
+    camera = side_camera(q_true, 45.0, scale=300.0, center=(640.0, 360.0))
     tracks = project_tracks(figure, q_true, camera, names, fps=fps, noise_px=1.0, missing=0.03, seed=seed)
     keys = point_keyframes(figure, q_true, range(0, len(q_true), int(round(0.25 * fps))), names, sigma_m=0.02, seed=seed + 1)
     # the inputs, so `pinrecon reconstruct` can repeat the run from files

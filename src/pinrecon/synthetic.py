@@ -24,6 +24,7 @@ __all__ = [
     "bundled_motion",
     "body_keypoints",
     "human_walk",
+    "side_camera",
     "BODY_EXCLUDE",
 ]
 
@@ -197,3 +198,21 @@ def _human_walk_cycle(fps: float):
     shift = q[t1, :3] - q[t0, :3]
     _CYCLE_CACHE[fps] = (q[t0:t1].copy(), shift)
     return _CYCLE_CACHE[fps]
+
+
+def side_camera(q, azimuth_deg: float = 45.0, *, scale: float = 300.0, center=(500.0, 500.0)):
+    """An orthographic camera looking at a motion ``azimuth_deg`` away from side-on.
+
+    Side-on means looking horizontally (world Y up) perpendicular to the root's overall
+    direction of travel, from ``q[0]`` to ``q[-1]`` (0 degrees: the limbs swing in the image
+    plane, the degenerate case of the planarity propositions).
+    """
+    from .cameras import Orthographic
+
+    d = np.array(q[-1, :3] - q[0, :3], float)
+    d[1] = 0.0
+    n = np.linalg.norm(d)
+    d = d / n if n > 1e-6 else np.array([0.0, 0.0, 1.0])
+    side = np.cross([0.0, 1.0, 0.0], d)
+    a = np.radians(azimuth_deg)
+    return Orthographic.from_view(np.cos(a) * side + np.sin(a) * d, scale=scale, center=center)
