@@ -402,7 +402,7 @@ def _place_on_tracks(figure, Q, camera, meas: Measurement2D):
     return Q
 
 
-def default_init(figure, n_frames, camera, meas: Measurement2D | None, smoothing, limits, options=None):
+def default_init(figure, n_frames, camera, meas: Measurement2D | None, smoothing, options=None):
     """A rest pose placed where the 2D tracks are, then rigidly fitted (root only)."""
     q_rest = rest_pose(figure)
     Q = np.tile(q_rest, (n_frames, 1))
@@ -528,7 +528,7 @@ def build_problem(
             Q0 = init_from_keyframes(figure, keyframes, T, factor, weights)
             Q0 = _place_on_tracks(figure, Q0, camera, meas)
         elif mode == "default":
-            Q0 = default_init(figure, T, camera, meas, smoothing, limits)
+            Q0 = default_init(figure, T, camera, meas, smoothing)
         else:
             raise InputError(f"init must be an array, 'keyframes' or 'default', got {init!r}", field="init")
     Q0 = figure.clamp(Q0, margin=1e-3)

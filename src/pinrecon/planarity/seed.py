@@ -372,7 +372,7 @@ def _reference_start(figure, tracks, camera, keyframes, factor, weights=None):
         Q = init_from_keyframes(figure, keyframes, T, factor, weights)
         Q = _place_on_tracks(figure, Q, camera, meas)
     else:
-        Q = default_init(figure, T, camera, meas, smoothing, limits)
+        Q = default_init(figure, T, camera, meas, smoothing)
     return figure.clamp(Q, margin=1e-3)
 
 
@@ -493,12 +493,12 @@ def seed_trajectory(
     res = solve(problem, Q_ref, options or SolverOptions(max_iterations=12, ftol=1e-3), active=active)
     Q = figure.normalize(res.x)
     if hasattr(camera, "scale") and figure.floating and keyframes is not None and len(keyframes):
-        Q = _depth_gauge(figure, Q, Q_ref, camera, sorted({int(k.frame) * factor for k in keyframes}))
+        Q = _depth_gauge(Q, Q_ref, camera, sorted({int(k.frame) * factor for k in keyframes}))
     Q = figure.clamp(Q, margin=1e-3)
     return Seed(Q, Q_ref, lifts, rejected, res, rows)
 
 
-def _depth_gauge(figure, Q, Q_ref, camera, key_frames):
+def _depth_gauge(Q, Q_ref, camera, key_frames):
     """Orthographic views do not see the root's depth: only the keyframes and the
     smoothing prior hold it, so the seeding fit leaves it wherever its iterations
     drifted.  Put it back on the straight line between the keyframes' root depths

@@ -67,9 +67,6 @@ class Measurement2D(RowKind):
             w = 1.0 / np.sqrt(1.0 + s / (c * c))
         return rho, w
 
-    def project(self, points_world):
-        return self.camera.project(points_world)
-
     def evaluate(self, state: State, jacobian: bool = True) -> RowBlock:
         slots = state.slot[self.frames]
         P = state.points[slots][:, self.keypoints]  # (N, M, 3)

@@ -309,7 +309,7 @@ def camera_up(camera) -> np.ndarray:
     return out
 
 
-def default_camera(figure=None):
+def default_camera():
     """Orthographic front view (looking along -Z, +Y up, metres) for results without one."""
     from ..cameras import Orthographic
 

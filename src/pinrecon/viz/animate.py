@@ -94,7 +94,7 @@ def animate(
         fps = min(fps, _MAX_GIF_FPS)
 
     cam = camera if camera is not None else getattr(result, "camera", None)
-    cam = cam or default_camera(motion.figure)
+    cam = cam or default_camera()
     cam2 = second_view_camera(cam, second_view, up)
     sk = skeleton(motion.figure)
     P = skeleton_points(motion, sk, idx)

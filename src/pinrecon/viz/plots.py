@@ -168,7 +168,7 @@ def plot_stick_strip(
     motion = as_motion(result)
     T = len(motion.times)
     frames = even_frames(T, 6) if frames is None else check_frames(frames, T)
-    cam = _resolve_camera(result, camera) or default_camera(motion.figure)
+    cam = _resolve_camera(result, camera) or default_camera()
     cam2 = second_view_camera(cam, second_view, up)
     sk = skeleton(motion.figure)
     P = skeleton_points(motion, sk, frames)
