@@ -240,7 +240,7 @@ def test_write_bvh_of_a_new_motion_reads_back_as_the_same_configurations(walk, t
 def test_result_of_a_bvh_figure_reloads_with_the_same_keypoints(walk, tmp_path):
     """The figure's URDF is embedded in the result NPZ and rebuilt by load_result."""
     from pinrecon import load_result
-    from pinrecon.reconstruct import Result
+    from pinrecon.result import Result
 
     Q = walk.q[1:4]
     result = Result(

@@ -181,7 +181,7 @@ def test_reconstruct_with_planarity_seed_and_fps_out():
 
 
 def test_relative_depth_jacobian_matches_finite_differences(walk_clip):
-    from pinrecon.reconstruct import ReconstructionProblem
+    from pinrecon.problem import ReconstructionProblem
 
     fig = walk_clip[0]
     cam = _camera(30.0)

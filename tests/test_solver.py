@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import pinrecon as pr
-from pinrecon.reconstruct import ReconstructionProblem, _keyframe_rows
+from pinrecon.problem import ReconstructionProblem, keyframe_rows
 from pinrecon.rows import JointLimits, Measurement2D, Posture, RowBlock, Smoothing, smoothing_sigmas
 from pinrecon.solver import BandedNormalEquations, SolverOptions, _flatten, solve
 from pinrecon.synthetic import point_keyframes, project_tracks, smooth_motion
@@ -27,7 +27,7 @@ def problem():
         JointLimits(fig, T, 0.01),
         Smoothing(fig, T, 1 / 30, smoothing_sigmas(fig)),
         Posture(fig, T, fig.neutral(), 1.0),
-    ] + _keyframe_rows(fig, point_keyframes(fig, Q, [0, 3, 6]), 1)
+    ] + keyframe_rows(fig, point_keyframes(fig, Q, [0, 3, 6]), 1)
     prob = ReconstructionProblem(fig, T, rows)
     Qx = np.stack([fig.integrate(q, 0.2 * np.random.default_rng(i).normal(size=fig.nv)) for i, q in enumerate(Q)])
     return fig, prob, Qx, Q

@@ -26,7 +26,7 @@ from pinrecon.io.bvh import load_bvh
 from pinrecon.io.coco import COCO_17
 from pinrecon.io.openpose import BODY_25, load_openpose
 from pinrecon.io.results import REQUIRED_KEYS
-from pinrecon.reconstruct import Result
+from pinrecon.result import Result
 
 OPENPOSE = DATA / "openpose_body25"
 COCO_DATASET = DATA / "coco_dataset.json"

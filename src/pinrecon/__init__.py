@@ -13,7 +13,9 @@ Quick use::
 from .cameras import Orthographic, Perspective, load_camera
 from .errors import InputError, PinreconError, UnknownNameError
 from .figure import Figure, Keypoint, load_keypoint_map
-from .reconstruct import Result, Weights, load_result, reconstruct, reconstruct_markers
+from .problem import Weights
+from .reconstruct import reconstruct, reconstruct_markers
+from .result import Result, load_result
 from .solver import SolverOptions
 from .tracks import Keyframe, Keyframes, Markers, Tracks, load_keyframes, load_tracks
 

@@ -61,7 +61,8 @@ class _Progress:
 
 def cmd_reconstruct(args) -> int:
     from .cameras import load_camera
-    from .reconstruct import Weights, reconstruct
+    from .problem import Weights
+    from .reconstruct import reconstruct
     from .solver import SolverOptions
     from .tracks import load_keyframes, load_tracks
 

@@ -30,7 +30,7 @@ import pinocchio as pin
 from ._resources import example_robot_data_robots, model_path
 from .errors import InputError, UnknownNameError
 
-__all__ = ["Figure", "Keypoint", "load_keypoint_map"]
+__all__ = ["Figure", "Keypoint", "load_keypoint_map", "parse_keypoint_entries", "xml_file"]
 
 ROOT_JOINT = "root_joint"
 
@@ -44,7 +44,14 @@ class Keypoint:
     offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
 
-def _parse_keypoint_entries(entries, file=None) -> list[Keypoint]:
+def parse_keypoint_entries(entries, file=None) -> list[Keypoint]:
+    """Keypoints from a keypoint map's ``keypoints`` object: ``{name: {"frame": f,
+    "offset": [x, y, z]}}`` (a bare string is a frame name with zero offset).
+
+    Used by :func:`load_keypoint_map`, by result files (which embed the map) and by
+    :meth:`Figure.from_bvh`. Bad entries raise :class:`~pinrecon.errors.InputError`
+    naming ``file`` and the keypoint.
+    """
     if isinstance(entries, Mapping):
         items = list(entries.items())
     else:
@@ -75,11 +82,12 @@ def load_keypoint_map(path: str | os.PathLike) -> list[Keypoint]:
     data = read_json(path)
     if not isinstance(data, Mapping) or "keypoints" not in data:
         raise InputError("missing top-level 'keypoints' object", file=path, field="keypoints")
-    return _parse_keypoint_entries(data["keypoints"], file=path)
+    return parse_keypoint_entries(data["keypoints"], file=path)
 
 
-def _xml_file(xml: str | bytes) -> io.BytesIO:
-    """A file object lxml accepts even when the text carries an encoding declaration."""
+def xml_file(xml: str | bytes) -> io.BytesIO:
+    """A file object lxml (and yourdfpy) accept even when the text carries an encoding
+    declaration (lxml refuses such a declaration in a ``str``)."""
     return io.BytesIO(xml.encode() if isinstance(xml, str) else xml)
 
 
@@ -96,7 +104,7 @@ def _limits_from_urdf_xml(xml: str) -> dict[str, tuple[float, float]]:
     import yourdfpy
 
     robot = yourdfpy.URDF.load(
-        _xml_file(xml), build_scene_graph=False, load_meshes=False, build_collision_scene_graph=False
+        xml_file(xml), build_scene_graph=False, load_meshes=False, build_collision_scene_graph=False
     ).robot
     out = {}
     for j in robot.joints:
@@ -241,14 +249,32 @@ class Figure:
             raise exc.located(file=kp_path) from None
 
     @classmethod
-    def from_bvh(cls, path, length_scale: float = 1.0, *, lock: Iterable[str] = ()) -> Figure:
+    def from_bvh(cls, path, length_scale: float = 1.0, *, lock: Iterable[str] | str = ()) -> Figure:
         """The figure of a BVH file's skeleton (its motion is ignored).
 
-        See :func:`pinrecon.io.bvh.figure_from_bvh` for the construction.
+        ``length_scale`` is metres per file unit (CMU: 0.056444); ``lock`` welds the named
+        BVH joints (or ``"static"``). See :mod:`pinrecon.figure_bvh` for the construction
+        and :func:`pinrecon.io.bvh.load_bvh` for the figure and its motion.
         """
-        from .io.bvh import figure_from_bvh, read_bvh
+        from .io.bvh_format import read_bvh
 
-        return figure_from_bvh(read_bvh(path), length_scale, lock=lock)
+        return cls.from_bvh_clip(read_bvh(path), length_scale, lock=lock)
+
+    @classmethod
+    def from_bvh_clip(cls, clip, length_scale: float = 1.0, *, lock: Iterable[str] | str = ()) -> Figure:
+        """The figure of an already parsed BVH skeleton (a :class:`pinrecon.io.bvh.BvhClip`)."""
+        from .figure_bvh import bvh_figure_data
+
+        d = bvh_figure_data(clip, length_scale, lock=lock)
+        return cls.from_urdf_string(
+            d.urdf_xml,
+            [Keypoint(n, f, off) for n, f, off in d.keypoints],
+            root="free",
+            name=d.name,
+            source=d.source,
+            limits=d.limits,
+            meta=d.meta,
+        )
 
     def with_keypoints(self, keypoints: Iterable[Keypoint] | str | os.PathLike) -> Figure:
         """The same model with another keypoint map."""
@@ -267,7 +293,7 @@ class Figure:
             keypoints,
             name=self.name,
             urdf_xml=self.urdf_xml,
-            limits=self._limit_dict(),
+            limits=self.limits_dict(),
             source=self.source,
             floating=self.floating,
             meta=self.meta,
@@ -289,7 +315,9 @@ class Figure:
         self.lower_v, self.upper_v = lower, upper
         self.limited_v = np.isfinite(lower) | np.isfinite(upper)
 
-    def _limit_dict(self):
+    def limits_dict(self) -> dict[str, tuple[float, float]]:
+        """Joint name -> (lower, upper) of every limited 1-dof joint: the ``limits``
+        argument that rebuilds this figure (:meth:`from_urdf_string`); saved in results."""
         out = {}
         for jname, jid in self._joint_ids.items():
             if self.model.nvs[jid] == 1 and self.model.nqs[jid] == 1:
@@ -587,7 +615,7 @@ class Figure:
 
         if self.urdf_xml is None:
             raise InputError("this figure has no URDF to edit", field="urdf")
-        urdf = yourdfpy.URDF.load(_xml_file(self.urdf_xml), build_scene_graph=False, load_meshes=False)
+        urdf = yourdfpy.URDF.load(xml_file(self.urdf_xml), build_scene_graph=False, load_meshes=False)
         names = [j.name for j in urdf.robot.joints]
         if isinstance(joint_scales, Mapping):
             unknown = [n for n in joint_scales if n not in names]
@@ -616,7 +644,7 @@ class Figure:
             root="free" if self.floating else "fixed",
             name=self.name,
             source=None,
-            limits=self._limit_dict(),
+            limits=self.limits_dict(),
             meta={k: v for k, v in self.meta.items() if not k.startswith("_")},
         )
 

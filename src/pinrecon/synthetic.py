@@ -171,7 +171,8 @@ def _human_walk_cycle(fps: float):
     if fps in _CYCLE_CACHE:
         return _CYCLE_CACHE[fps]
     from .figure import Figure
-    from .reconstruct import Weights, reconstruct_markers
+    from .problem import Weights
+    from .reconstruct import reconstruct_markers
 
     step = 120.0 / fps
     if abs(step - round(step)) > 1e-9 or step < 1:

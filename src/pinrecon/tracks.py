@@ -1,6 +1,11 @@
 """2D joint tracks and 3D keyframes: the observations pinrecon reconstructs from.
 
 Validation lives here: every problem is reported with the file, the field and the frame.
+
+This is the one place that builds :class:`Tracks` from files: the format readers in
+:mod:`pinrecon.io` (``tracks_json``, ``coco``, ``openpose_json``) return plain
+:class:`~pinrecon.io.track_arrays.TrackArrays` and never import this module;
+:func:`load_tracks` calls them and :meth:`Tracks.from_arrays` validates.
 """
 
 from __future__ import annotations
@@ -14,6 +19,10 @@ from pathlib import Path
 import numpy as np
 
 from .errors import InputError, UnknownNameError
+from .io.coco import is_coco_json, read_coco
+from .io.openpose_json import read_openpose
+from .io.track_arrays import TrackArrays
+from .io.tracks_json import read_tracks_json, read_tracks_npz, write_tracks
 
 __all__ = ["Tracks", "Markers", "Keyframe", "Keyframes", "load_tracks", "load_keyframes", "keyframes_from_points"]
 
@@ -81,6 +90,14 @@ class Tracks:
                 raise InputError("confidence must be >= 0", file=src, field="confidence", frame=int(neg[0, 0]))
         self.points, self.names, self.fps, self.confidence = pts, names, float(self.fps), conf
 
+    @classmethod
+    def from_arrays(cls, arrays: TrackArrays, *, fps: float | None = None) -> Tracks:
+        """Validated tracks from a format reader's plain arrays; ``fps`` (when given)
+        replaces the file's frame rate (OpenPose and COCO store none)."""
+        return cls(
+            arrays.points, arrays.names, arrays.fps if fps is None else fps, arrays.confidence, arrays.source
+        )
+
     @property
     def T(self) -> int:
         return self.points.shape[0]
@@ -130,9 +147,10 @@ class Tracks:
     # ---- files
     def save(self, path: str | os.PathLike) -> None:
         """Write JSON (``.json``) or NPZ (``.npz``) atomically; see ``docs/formats.md``."""
-        from .io.tracks_json import save_tracks
-
-        save_tracks(self, path)
+        # validate again (attributes may have been replaced since construction): a file that
+        # load_tracks would reject is never written
+        t = Tracks(self.points, self.names, self.fps, self.confidence, str(path))
+        write_tracks(path, t.points, t.names, t.fps, t.confidence)
 
 
 def load_tracks(path: str | os.PathLike, *, fps: float | None = None, fmt: str | None = None) -> Tracks:
@@ -141,11 +159,8 @@ def load_tracks(path: str | os.PathLike, *, fps: float | None = None, fmt: str |
     ``fmt`` is one of ``"json"``, ``"npz"``, ``"openpose"``, ``"coco"``; by default it is
     guessed (a folder is OpenPose; a JSON file with ``annotations`` or a list is COCO).
     ``fps`` is required for OpenPose and COCO input, which store no frame rate.
+    (:func:`pinrecon.io.openpose.load_openpose` picks another OpenPose person.)
     """
-    from .io.coco import is_coco_json, load_coco
-    from .io.openpose import load_openpose
-    from .io.tracks_json import load_tracks_json, load_tracks_npz
-
     path = Path(path)
     if not path.exists():
         raise InputError("file not found", file=path)
@@ -157,13 +172,13 @@ def load_tracks(path: str | os.PathLike, *, fps: float | None = None, fmt: str |
         else:
             fmt = "coco" if is_coco_json(path) else "json"
     if fmt == "json":
-        return load_tracks_json(path)
+        return Tracks.from_arrays(read_tracks_json(path))
     if fmt == "npz":
-        return load_tracks_npz(path)
+        return Tracks.from_arrays(read_tracks_npz(path))
     if fmt in ("openpose", "coco"):
         if fps is None:
             raise InputError(f"{fmt} files store no frame rate: pass fps (--fps)", file=path, field="fps")
-        return load_openpose(path, fps=fps) if fmt == "openpose" else load_coco(path, fps=fps)
+        return Tracks.from_arrays(read_openpose(path) if fmt == "openpose" else read_coco(path), fps=fps)
     raise InputError(f"unknown tracks format {fmt!r}", file=path, field="format")
 
 

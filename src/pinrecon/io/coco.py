@@ -5,6 +5,9 @@ Frames are the images in increasing ``image_id`` order (or, for a dataset file, 
 order of ``images``). One person per frame: the annotation with the highest ``score``
 (results) or largest ``area`` (dataset). Visibility ``v = 0`` means missing; for
 results the third value is a confidence.
+
+:func:`read_coco` returns plain :class:`~pinrecon.io.track_arrays.TrackArrays` (no frame
+rate); :func:`pinrecon.load_tracks` ``(path, fps=...)`` makes the ``Tracks``.
 """
 
 from __future__ import annotations
@@ -16,10 +19,10 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from ..tracks import Tracks
 from .jsonfile import read_json
+from .track_arrays import TrackArrays
 
-__all__ = ["load_coco", "is_coco_json", "COCO_17"]
+__all__ = ["read_coco", "is_coco_json", "COCO_17"]
 
 COCO_17 = [
     "nose", "left_eye", "right_eye", "left_ear", "right_ear", "left_shoulder",
@@ -41,7 +44,8 @@ def is_coco_json(path: str | os.PathLike) -> bool:
     return isinstance(data, list) or (isinstance(data, dict) and "annotations" in data)
 
 
-def load_coco(path: str | os.PathLike, *, fps: float) -> Tracks:
+def read_coco(path: str | os.PathLike) -> TrackArrays:
+    """Parse a COCO dataset file or results list (see the module docstring); ``fps`` is None."""
     path = Path(path)
     data = read_json(path)
     names = COCO_17
@@ -91,4 +95,4 @@ def load_coco(path: str | os.PathLike, *, fps: float) -> Tracks:
         p = arr[:, :2].copy()
         p[vis <= 0] = np.nan
         pts[t], conf[t] = p, c
-    return Tracks(pts, names, fps, conf, str(path))
+    return TrackArrays(pts, names, None, conf, str(path))

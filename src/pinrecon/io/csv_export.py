@@ -30,18 +30,16 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
+from ..figure import Figure
+from ..rotations import continuous_euler, matrix_to_euler, quat_xyzw_to_matrix
 from .atomic import atomic_write_text
 
-__all__ = ["write_csv", "motion_table"]
+__all__ = ["write_csv", "motion_table", "motion_columns"]
 
 
 def _zyx_columns(prefix: str, quat_xyzw: np.ndarray, pos: np.ndarray | None):
-    from scipy.spatial.transform import Rotation
-
-    from .bvh_export import _matrix_to_euler, continuous_euler
-
-    R = Rotation.from_quat(quat_xyzw).as_matrix()
-    eul = continuous_euler(_matrix_to_euler("ZYX", R))
+    R = quat_xyzw_to_matrix(quat_xyzw)
+    eul = continuous_euler(matrix_to_euler("ZYX", R))
     names, cols = [], []
     if pos is not None:
         names += [f"{prefix}_x", f"{prefix}_y", f"{prefix}_z"]
@@ -58,12 +56,14 @@ def _is_prismatic(model, jid: int) -> bool:
 
 def motion_table(figure, q: np.ndarray, times: np.ndarray) -> tuple[list[str], np.ndarray]:
     """The CSV columns and values (frames, columns) of motion ``q`` (see the module doc)."""
-    names, _, table = _motion_columns(figure, q, times)
+    names, _, table = motion_columns(figure, q, times)
     return names, table
 
 
-def _motion_columns(figure, q, times):
-    """Column names, their units ("s", "m", "deg" or "" for raw entries) and values."""
+def motion_columns(figure, q: np.ndarray, times: np.ndarray) -> tuple[list[str], list[str], np.ndarray]:
+    """Column names, their units (``"s"``, ``"m"``, ``"deg"``, or ``""`` for raw
+    configuration entries) and values (frames, columns) of motion ``q``: the CSV columns
+    of :func:`motion_table` with units, also what :mod:`pinrecon.viz` plots."""
     q = figure.check_q(q)
     if q.ndim == 1:
         q = q[None]
@@ -128,8 +128,6 @@ def write_csv(
 
     Returns the column names. See the module docstring for the columns and units.
     """
-    from ..figure import Figure
-
     if isinstance(result_or_figure, Figure):
         figure = result_or_figure
         if q is None:

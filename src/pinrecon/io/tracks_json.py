@@ -3,6 +3,10 @@
 JSON: ``{"fps": 120.0, "names": [K names], "points": T x K list of [u, v] or null,
 "confidence": optional T x K}``. NPZ: the same keys, ``points`` (T, K, 2) with NaN for
 missing.
+
+Plain data both ways: the readers return :class:`~pinrecon.io.track_arrays.TrackArrays`
+and the writer takes arrays; :func:`pinrecon.load_tracks` and :meth:`pinrecon.Tracks.save`
+build and validate the ``Tracks`` (this module never imports :mod:`pinrecon.tracks`).
 """
 
 from __future__ import annotations
@@ -15,11 +19,11 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from ..tracks import Tracks
 from .atomic import atomic_path, atomic_write_text
 from .jsonfile import read_json
+from .track_arrays import TrackArrays
 
-__all__ = ["load_tracks_json", "load_tracks_npz", "save_tracks", "tracks_to_dict"]
+__all__ = ["read_tracks_json", "read_tracks_npz", "write_tracks", "tracks_dict"]
 
 
 def _require(data, key, path):
@@ -28,7 +32,8 @@ def _require(data, key, path):
     return data[key]
 
 
-def load_tracks_json(path: str | os.PathLike) -> Tracks:
+def read_tracks_json(path: str | os.PathLike) -> TrackArrays:
+    """Parse a pinrecon tracks JSON file (``fps`` as written; ``Tracks`` checks it)."""
     path = Path(path)
     data = read_json(path)
     if not isinstance(data, dict):
@@ -70,10 +75,11 @@ def load_tracks_json(path: str | os.PathLike) -> Tracks:
             except (TypeError, ValueError):
                 raise InputError("not numeric", file=path, field="confidence", frame=t) from None
         conf = arr
-    return Tracks(pts, names, fps, conf, str(path))
+    return TrackArrays(pts, names, fps, conf, str(path))
 
 
-def load_tracks_npz(path: str | os.PathLike) -> Tracks:
+def read_tracks_npz(path: str | os.PathLike) -> TrackArrays:
+    """Parse a pinrecon tracks NPZ file."""
     path = Path(path)
     if not zipfile.is_zipfile(path):
         raise InputError("not an NPZ file (an NPZ is a zip archive of .npy arrays)", file=path)
@@ -88,31 +94,35 @@ def load_tracks_npz(path: str | os.PathLike) -> Tracks:
     if fps.shape != () or fps.dtype.kind not in "iuf":
         raise InputError(f"must be a number, got {fps.dtype} array of shape {fps.shape}", file=path, field="fps")
     names = [str(n) for n in np.atleast_1d(data["names"])]
-    return Tracks(data["points"], names, float(fps), data.get("confidence"), str(path))
+    return TrackArrays(data["points"], names, float(fps), data.get("confidence"), str(path))
 
 
-def tracks_to_dict(tracks: Tracks) -> dict:
+def tracks_dict(points: np.ndarray, names: list[str], fps: float, confidence: np.ndarray | None) -> dict:
+    """The JSON object of tracks (missing points as null)."""
     pts = [
         [None if not np.all(np.isfinite(p)) else [float(p[0]), float(p[1])] for p in row]
-        for row in tracks.points
+        for row in points
     ]
-    out = {"fps": tracks.fps, "names": list(tracks.names), "points": pts}
-    if tracks.confidence is not None:
-        out["confidence"] = tracks.confidence.tolist()
+    out = {"fps": fps, "names": list(names), "points": pts}
+    if confidence is not None:
+        out["confidence"] = confidence.tolist()
     return out
 
 
-def save_tracks(tracks: Tracks, path: str | os.PathLike) -> None:
+def write_tracks(
+    path: str | os.PathLike, points: np.ndarray, names: list[str], fps: float, confidence: np.ndarray | None
+) -> None:
+    """Write tracks as NPZ (``.npz`` suffix) or JSON (otherwise), atomically.
+
+    The arrays are written as given: :meth:`pinrecon.Tracks.save` validates them first.
+    """
     path = Path(path)
-    # validate again (attributes may have been replaced since construction): a file that
-    # load_tracks would reject is never written
-    tracks = Tracks(tracks.points, tracks.names, tracks.fps, tracks.confidence, str(path))
     if path.suffix.lower() == ".npz":
-        arrays = {"fps": np.float64(tracks.fps), "names": np.array(tracks.names), "points": tracks.points}
-        if tracks.confidence is not None:
-            arrays["confidence"] = tracks.confidence
+        arrays = {"fps": np.float64(fps), "names": np.array(names), "points": points}
+        if confidence is not None:
+            arrays["confidence"] = confidence
         with atomic_path(path) as tmp:
             with open(tmp, "wb") as fh:
                 np.savez(fh, **arrays)
     else:
-        atomic_write_text(path, json.dumps(tracks_to_dict(tracks)))
+        atomic_write_text(path, json.dumps(tracks_dict(points, names, fps, confidence)))

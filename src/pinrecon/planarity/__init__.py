@@ -15,16 +15,9 @@ the pivot/hinge.  See ``docs/planarity.md`` for the derivations.
   the wrong side of their reflection; :func:`links_report` - ``pinrecon links``.
 """
 
-from .groups import (
-    DEFAULT_MODEL_TOL,
-    GroupFit,
-    HingedTriple,
-    Link,
-    LinkGraph,
-    discover_links,
-    estimate_noise_sigma,
-    fit_planar_group,
-)
+from .fit_types import GroupFit, HingedTriple, Link, LinkGraph
+from .groups import DEFAULT_MODEL_TOL, estimate_noise_sigma, fit_planar_group
+from .links import discover_links
 from .calibrate import (
     Calibration,
     ScaleEstimate,

@@ -36,7 +36,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InputError
-from .groups import GroupFit, estimate_noise_sigma, fit_planar_group
+from .fit_types import GroupFit
+from .groups import estimate_noise_sigma, fit_planar_group
 
 __all__ = [
     "SegmentLength",
@@ -48,6 +49,8 @@ __all__ = [
     "segment_lengths",
     "estimate_scale",
     "calibrate_figure",
+    "model_lengths",
+    "track_array",
 ]
 
 #: gradings, best first
@@ -128,8 +131,13 @@ def kinematic_triples(figure, names: Sequence[str] | None = None) -> list[tuple[
     return out
 
 
-def _model_lengths(figure, segments: Sequence[tuple[str, str]]) -> tuple[np.ndarray, np.ndarray]:
-    """Segment lengths (metres) of the figure and whether each is rigid (constant)."""
+def model_lengths(figure, segments: Sequence[tuple[str, str]]) -> tuple[np.ndarray, np.ndarray]:
+    """Segment lengths (metres) of the figure and whether each is rigid (constant).
+
+    ``segments``: (parent keypoint, child keypoint) name pairs.  Returns ``(length_m
+    (S,), rigid (S,) bool)``; a segment is rigid when its length is the same in the
+    neutral and two random configurations.
+    """
     qs = [figure.neutral(), figure.random_configuration(3), figure.random_configuration(4)]
     if not segments:
         return np.zeros(0), np.zeros(0, bool)
@@ -220,7 +228,12 @@ def _scale_of(camera, scale):
     return None
 
 
-def _track_array(tracks, names):
+def track_array(tracks, names):
+    """Image positions (T, len(names), 2) of the named points of ``tracks`` (NaN missing).
+
+    An unknown name raises :class:`~pinrecon.errors.UnknownNameError` listing the
+    tracked names.
+    """
     idx = {n: i for i, n in enumerate(tracks.names)}
     missing = [n for n in names if n not in idx]
     if missing:
@@ -304,10 +317,10 @@ def segment_lengths(
                 if limb or branching:
                     triples.append(((p, j, c), limb))
     involved = sorted({n for sg in segments for n in sg})
-    sig_img = float(sigma) if sigma is not None else estimate_noise_sigma(_track_array(tracks, involved))
+    sig_img = float(sigma) if sigma is not None else estimate_noise_sigma(track_array(tracks, involved))
     fits = []
     for tri, limb in triples:
-        x = _track_array(tracks, list(tri))
+        x = track_array(tracks, list(tri))
         fits.append((tri, limb, fit_planar_group(x, hinge=1, sigma=sigma, seed=seed)))
     # candidates per segment
     cand: dict[frozenset, list] = {}
@@ -333,7 +346,7 @@ def segment_lengths(
         if c:
             _, _, L, sd, method, tri = min(c, key=lambda e: (e[0], e[1]))
         else:
-            L, sd = _projected_length(_track_array(tracks, list(seg)))
+            L, sd = _projected_length(track_array(tracks, list(seg)))
             method, tri = "projected", None
         items.append(SegmentLength(seg, L, L / s if s else float("nan"), sd, method, tri))
     return SegmentLengths(tuple(items), s, accepted, sig_img)
@@ -382,7 +395,7 @@ def estimate_scale(figure, tracks, *, lengths: SegmentLengths | None = None, sig
             "(needs a hinged chain such as hip-knee-ankle moving in a plane)",
             field="tracks",
         )
-    L_model, rigid = _model_lengths(figure, [it.segment for it in segs])
+    L_model, rigid = model_lengths(figure, [it.segment for it in segs])
     keep = [(it, Lm) for it, Lm, r in zip(segs, L_model, rigid) if r and Lm > 0]
     ratios = {it.segment: it.length / Lm for it, Lm in keep}
     x = np.array(list(ratios.values()))
@@ -510,21 +523,21 @@ def calibrate_figure(
     if not target:
         raise InputError("no reliable segment length to calibrate with", field="lengths")
     segs = list(target)
-    L0, rigid = _model_lengths(figure, segs)
+    L0, rigid = model_lengths(figure, segs)
     bad = [sg for sg, r, l0 in zip(segs, rigid, L0) if not r or l0 <= 0]
     segs = [sg for sg in segs if sg not in bad]
     if not segs:
         raise InputError(f"the measured segments {bad} are not rigid segments of the figure", field="lengths")
-    L0 = _model_lengths(figure, segs)[0]
+    L0 = model_lengths(figure, segs)[0]
     ratio = np.array([target[sg] for sg in segs]) / L0
     g = _wmedian(ratio, L0)
     seg_scale = dict(zip(segs, ratio))
     # URDF joint -> factor
     import yourdfpy
 
-    from ..figure import _xml_file
+    from ..figure import xml_file
 
-    urdf = yourdfpy.URDF.load(_xml_file(figure.urdf_xml), build_scene_graph=False, load_meshes=False)
+    urdf = yourdfpy.URDF.load(xml_file(figure.urdf_xml), build_scene_graph=False, load_meshes=False)
     all_joints = [j.name for j in urdf.robot.joints]
     owner: dict[str, tuple[str, str]] = {}
     for sg in segs:
@@ -538,7 +551,7 @@ def calibrate_figure(
         js = {jn: (factors[owner[jn]] if jn in owner else g) for jn in all_joints}
         ks = {k.name: (factors[kp_owner[k.name]] if k.name in kp_owner else g) for k in figure.keypoints_def}
         cal = figure.rescaled(js, ks)
-        got = _model_lengths(cal, segs)[0]
+        got = model_lengths(cal, segs)[0]
         err = np.array([target[sg] for sg in segs]) / got
         if np.max(np.abs(err - 1.0)) < 1e-9:
             break

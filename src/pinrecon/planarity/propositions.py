@@ -31,6 +31,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from .conics import conic_eig, hinge_conic, pow2_scale, readonly, rod_conic, sym_row
+
 __all__ = [
     "DEFAULT_RTOL",
     "PlanarSolution",
@@ -46,7 +48,7 @@ DEFAULT_RTOL = 1e-9
 
 
 # --------------------------------------------------------------------------
-# small vectorised helpers (shared with groups.py)
+# small vectorised helpers (the shared conic algebra lives in conics.py)
 # --------------------------------------------------------------------------
 def _cross2(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """2D cross product ``a_x b_y - a_y b_x`` over the last axis."""
@@ -61,59 +63,13 @@ def _sine(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.where(den > 0, s, 0.0)
 
 
-def _sym_row(d: np.ndarray, s: np.ndarray) -> np.ndarray:
-    """Row of the linear condition ``d^T M s = 0`` for ``M = [[p, q], [q, r]]``.
-
-    Returns ``(d_x s_x, d_x s_y + d_y s_x, d_y s_y)`` so that the row dotted
-    with ``(p, q, r)`` equals ``d^T M s``.
-    """
-    return np.stack(
-        [
-            d[..., 0] * s[..., 0],
-            d[..., 0] * s[..., 1] + d[..., 1] * s[..., 0],
-            d[..., 1] * s[..., 1],
-        ],
-        axis=-1,
-    )
-
-
-def _quad(m: np.ndarray, u: np.ndarray) -> np.ndarray:
-    """``u^T M u`` for ``m = (p, q, r)`` (broadcast over leading axes)."""
-    return (
-        m[..., 0] * u[..., 0] ** 2
-        + 2 * m[..., 1] * u[..., 0] * u[..., 1]
-        + m[..., 2] * u[..., 1] ** 2
-    )
-
-
-def _conic_eig(m: np.ndarray):
-    """Stable closed-form eigen-analysis of ``M = [[p, q], [q, r]]``.
-
-    Returns ``(lam_min, lam_max, gap, e_max)`` with ``gap = lam_max - lam_min``
-    computed without cancellation (``2 hypot((p - r)/2, q)``) and ``e_max`` the
-    unit eigenvector of ``lam_max`` (angle ``atan2(2q, p - r) / 2``).
-    """
-    p, q, r = m[..., 0], m[..., 1], m[..., 2]
-    half = 0.5 * (p + r)
-    rad = np.hypot(0.5 * (p - r), q)
-    lam_max = half + rad
-    # lam_min = det / lam_max avoids cancellation when lam_min << lam_max.
-    with np.errstate(invalid="ignore", divide="ignore"):
-        lam_min = np.where(
-            lam_max > 0, (p * r - q * q) / np.where(lam_max > 0, lam_max, 1.0), half - rad
-        )
-    ang = 0.5 * np.arctan2(2 * q, p - r)
-    e_max = np.stack([np.cos(ang), np.sin(ang)], axis=-1)
-    return lam_min, lam_max, 2 * rad, e_max
-
-
 def _gradient_from_conic(m: np.ndarray):
     """Depth gradient ``g`` (canonical sign) and ``lam_min`` from a PD conic.
 
     ``M = (I + g g^T) / L^2`` so ``|g|^2 = (lam_max - lam_min) / lam_min``.
     Returns ``(g, lam_min, lam_max)``; ``g`` is NaN where ``M`` is not PD.
     """
-    lam_min, lam_max, gap, e_max = _conic_eig(m)
+    lam_min, lam_max, gap, e_max = conic_eig(m)
     with np.errstate(invalid="ignore", divide="ignore"):
         gnorm = np.sqrt(gap / lam_min)
     g = gnorm[..., None] * e_max
@@ -134,22 +90,6 @@ def _normal_from_gradient(g: np.ndarray) -> np.ndarray:
     """Unit plane normal in camera axes, ``(-g_x, -g_y, 1) / sqrt(1 + |g|^2)``."""
     n = np.concatenate([-g, np.ones(g.shape[:-1] + (1,))], axis=-1)
     return n / np.linalg.norm(n, axis=-1, keepdims=True)
-
-
-def _pow2_scale(x: float) -> float:
-    """Power of two close to ``x`` (> 0): dividing by it is exact in floating point.
-
-    Normalising the data by an arbitrary scale would round every input once,
-    which for nearly equal views (small rotations) is amplified by the
-    problem's conditioning (~1/eps^2 for views eps rad apart).
-    """
-    return float(np.ldexp(1.0, int(np.frexp(x)[1])))
-
-
-def _readonly(a) -> np.ndarray:
-    a = np.array(a, dtype=float)
-    a.setflags(write=False)
-    return a
 
 
 def _as_uv(uv, name: str, shape: tuple[int, ...], meaning: str) -> np.ndarray:
@@ -226,9 +166,9 @@ class PlanarSolution:
         """The other member of the reflection pair (depths negated, ``n -> (-n_x, -n_y, n_z)``)."""
         return replace(
             self,
-            depths=_readonly(-self.depths),
-            normal=_readonly(self.normal * np.array([-1.0, -1.0, 1.0])),
-            gradient=_readonly(-self.gradient),
+            depths=readonly(-self.depths),
+            normal=readonly(self.normal * np.array([-1.0, -1.0, 1.0])),
+            gradient=readonly(-self.gradient),
         )
 
     def pair(self) -> tuple[PlanarSolution, PlanarSolution]:
@@ -280,55 +220,15 @@ def _undetermined(
     nan2 = np.full(2, np.nan)
     return PlanarSolution(
         kind=kind,
-        depths=_readonly(np.full(depth_shape, np.nan)),
-        lengths=_readonly(np.full(n_len, np.nan)),
-        normal=_readonly(np.full(3, np.nan)),
-        gradient=_readonly(nan2),
-        conic=_readonly(np.full((2, 2), np.nan)),
+        depths=readonly(np.full(depth_shape, np.nan)),
+        lengths=readonly(np.full(n_len, np.nan)),
+        normal=readonly(np.full(3, np.nan)),
+        gradient=readonly(nan2),
+        conic=readonly(np.full((2, 2), np.nan)),
         degeneracy=degeneracy,
         unique=False,
         consistent=consistent,
     )
-
-
-# --------------------------------------------------------------------------
-# batched minimal solvers (also used for RANSAC hypotheses in groups.py)
-# --------------------------------------------------------------------------
-def _rod_conic(u: np.ndarray) -> np.ndarray:
-    """Conic ``m = (p, q, r)`` with ``u_i^T M u_i = 1`` through three views.
-
-    ``u`` has shape ``(..., 3, 2)``.  Uses the difference form
-    ``(u_j - u_1)^T M (u_j + u_1) = 0`` (j = 2, 3), whose rows are exactly
-    ``r_j - r_1`` of the direct system ``r_i . m = 1`` but are formed from
-    differences of the data, then normalises with the mean of ``u_i^T M u_i``.
-    Not normalised-positive: a non-PD result means "no interpretation".
-    NaN when the two difference rows are parallel (collinear views).
-    """
-    d = u[..., 1:, :] - u[..., :1, :]
-    s = u[..., 1:, :] + u[..., :1, :]
-    rows = _sym_row(d, s)  # (..., 2, 3)
-    m = np.cross(rows[..., 0, :], rows[..., 1, :])
-    c = _quad(m[..., None, :], u).mean(axis=-1)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return m / c[..., None]
-
-
-def _hinge_conic(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Shape matrix ``Q ~ I + g g^T`` (up to positive scale) from two views of a hinge.
-
-    ``a``, ``b``: shape ``(..., 2, 2)`` = (views, image axes) of the rods OA, OB.
-    Conditions ``(a2 - a1)^T Q (a2 + a1) = 0`` and the same for ``b``.  The
-    sign is chosen so that ``trace(Q) > 0``; the result is scaled so that
-    ``lambda_min(Q) = 1`` when ``Q`` is PD.
-    """
-    ra = _sym_row(a[..., 1, :] - a[..., 0, :], a[..., 1, :] + a[..., 0, :])
-    rb = _sym_row(b[..., 1, :] - b[..., 0, :], b[..., 1, :] + b[..., 0, :])
-    q = np.cross(ra, rb)
-    tr = q[..., 0] + q[..., 2]
-    q = np.where((tr < 0)[..., None], -q, q)
-    lam_min, _, _, _ = _conic_eig(q)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return q / np.where(lam_min > 0, lam_min, np.abs(tr) / 2 + (tr == 0))[..., None]
 
 
 def _mat(m: np.ndarray) -> np.ndarray:
@@ -384,7 +284,7 @@ def rod_from_three_views(uv, *, rtol: float = DEFAULT_RTOL) -> PlanarSolution:
     scale = float(np.max(np.linalg.norm(u, axis=1)))
     if scale == 0.0:
         return _undetermined("rod", (3,), 1, "collinear_views_all", True)
-    scale = _pow2_scale(scale)
+    scale = pow2_scale(scale)
     un = u / scale
     r2 = np.sum(un**2, axis=1)
 
@@ -401,7 +301,7 @@ def rod_from_three_views(uv, *, rtol: float = DEFAULT_RTOL) -> PlanarSolution:
         same = abs(r2[i] - r2[j]) <= max(1e3 * rtol, 1e-12) * max(r2[i], r2[j])
         return _undetermined("rod", (3,), 1, f"collinear_views_{i + 1}_{j + 1}", bool(same))
 
-    m = _rod_conic(un)
+    m = rod_conic(un)
     g, lam_min, lam_max = _gradient_from_conic(m)
     if not (np.isfinite(lam_min) and lam_min > rtol * abs(lam_max)):
         return _undetermined("rod", (3,), 1, "no_planar_interpretation", False)
@@ -418,11 +318,11 @@ def rod_from_three_views(uv, *, rtol: float = DEFAULT_RTOL) -> PlanarSolution:
             tag = "equal_projected_lengths_2_3"
     return PlanarSolution(
         kind="rod",
-        depths=_readonly(depths),
-        lengths=_readonly([length]),
-        normal=_readonly(_normal_from_gradient(g)),
-        gradient=_readonly(g),
-        conic=_readonly(_mat(m) / scale**2),
+        depths=readonly(depths),
+        lengths=readonly([length]),
+        normal=readonly(_normal_from_gradient(g)),
+        gradient=readonly(g),
+        conic=readonly(_mat(m) / scale**2),
         degeneracy=tag,
         unique=True,
         consistent=True,
@@ -487,7 +387,7 @@ def hinge_from_two_views(uv, *, rtol: float = DEFAULT_RTOL) -> PlanarSolution:
     scale = float(max(np.max(np.linalg.norm(a, axis=1)), np.max(np.linalg.norm(b, axis=1))))
     if scale == 0.0:
         return _undetermined("hinge", (2, 2), 2, "collinear_views_A", True)
-    scale = _pow2_scale(scale)
+    scale = pow2_scale(scale)
     an, bn = a / scale, b / scale
     ra2, rb2 = np.sum(an**2, axis=1), np.sum(bn**2, axis=1)
 
@@ -498,13 +398,13 @@ def hinge_from_two_views(uv, *, rtol: float = DEFAULT_RTOL) -> PlanarSolution:
 
     da, sa = an[1] - an[0], an[1] + an[0]
     db, sb = bn[1] - bn[0], bn[1] + bn[0]
-    row_a, row_b = _sym_row(da, sa), _sym_row(db, sb)
+    row_a, row_b = sym_row(da, sa), sym_row(db, sb)
     cr = np.cross(row_a, row_b)
     if np.linalg.norm(cr) <= rtol * np.linalg.norm(row_a) * np.linalg.norm(row_b):
         tag = "parallel_chords" if _sine(da, db) <= np.sqrt(rtol) else "perpendicular_chords"
         return _undetermined("hinge", (2, 2), 2, tag, True)
 
-    q = _hinge_conic(an[None], bn[None])[0]
+    q = hinge_conic(an[None], bn[None])[0]
     g, lam_min, lam_max = _gradient_from_conic(q)
     if not (np.isfinite(lam_min) and lam_min > rtol * abs(lam_max)):
         return _undetermined("hinge", (2, 2), 2, "no_planar_interpretation", False)
@@ -528,11 +428,11 @@ def hinge_from_two_views(uv, *, rtol: float = DEFAULT_RTOL) -> PlanarSolution:
     conic = np.array([[1.0 + g[0] ** 2, g[0] * g[1]], [g[0] * g[1], 1.0 + g[1] ** 2]]) / la**2
     return PlanarSolution(
         kind="hinge",
-        depths=_readonly(depths),
-        lengths=_readonly([la, lb]),
-        normal=_readonly(_normal_from_gradient(g)),
-        gradient=_readonly(g),
-        conic=_readonly(conic),
+        depths=readonly(depths),
+        lengths=readonly([la, lb]),
+        normal=readonly(_normal_from_gradient(g)),
+        gradient=readonly(g),
+        conic=readonly(conic),
         degeneracy=tag,
         unique=True,
         consistent=True,

@@ -48,9 +48,16 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InputError
+from ..problem import Weights, make_problem
 from ..rows.base import RowBlock, RowKind, State
-from .calibrate import _model_lengths, _track_array, kinematic_triples
-from .groups import GroupFit, discover_links, estimate_noise_sigma, fit_planar_group
+from ..solver import SolverOptions, solve
+from ..starts.rest import rest_start
+from ..starts.keyframes import keyframe_start
+from ..tracks import Keyframes
+from .calibrate import kinematic_triples, model_lengths, track_array
+from .fit_types import GroupFit
+from .groups import estimate_noise_sigma, fit_planar_group
+from .links import discover_links
 
 __all__ = [
     "RelativeDepth",
@@ -178,7 +185,7 @@ def _fit_units(figure, x_m, names, *, length_tol, sigma, seed, triples=None):
     for tri in triples:
         x = x_m[:, [pos[n] for n in tri]]
         f = fit_planar_group(x, hinge=1, sigma=sigma, seed=seed)
-        Lm, _ = _model_lengths(figure, [(tri[0], tri[1]), (tri[1], tri[2])])
+        Lm, _ = model_lengths(figure, [(tri[0], tri[1]), (tri[1], tri[2])])
         cands = [f] if (f.planar and f.degeneracy in (None, "plane_parallel_to_image")) else list(f.span_fits)
         if not cands:
             rejected.append((tri, f"not planar ({f.reason})"))
@@ -293,10 +300,10 @@ def lift_limbs(
             f"the tracks and the figure share no keypoint name; figure keypoints: {figure.keypoint_names[:60]}",
             field="names",
         )
-    uv = _track_array(tracks, names)
+    uv = track_array(tracks, names)
     kp_idx = figure.keypoint_index(names)
     if Q_ref is None:
-        Q_ref = _reference_start(figure, tracks.select(names), camera, keyframes, factor)
+        Q_ref = _reference_start(_seed_problem(figure, tracks.select(names), camera, keyframes, factor, None))
     x_m = _metric_points(uv, camera, figure, Q_ref, factor, kp_idx)
     raw, rejected = _fit_units(figure, x_m, names, length_tol=length_tol, sigma=sigma, seed=seed)
     U = len(raw)
@@ -362,29 +369,15 @@ def lift_limbs(
 # --------------------------------------------------------------------------
 # the seed
 # --------------------------------------------------------------------------
-def _reference_start(figure, tracks, camera, keyframes, factor, weights=None):
-    """The engine's own start (what ``reconstruct`` would start from without a seed)."""
-    from ..reconstruct import Weights, default_init, init_from_keyframes, _place_on_tracks
-
-    weights = weights or Weights()
-    meas, smoothing, limits, T = _engine_rows(figure, tracks, camera, factor, weights)
-    if keyframes is not None and len(keyframes):
-        Q = init_from_keyframes(figure, keyframes, T, factor, weights)
-        Q = _place_on_tracks(figure, Q, camera, meas)
-    else:
-        Q = default_init(figure, T, camera, meas, smoothing)
-    return figure.clamp(Q, margin=1e-3)
+def _seed_problem(figure, tracks, camera, keyframes, factor, weights):
+    """The engine's problem for these inputs (names already restricted to the figure)."""
+    return make_problem(figure, tracks, camera, keyframes, factor=factor, weights=weights, keypoints=tracks.names)
 
 
-def _engine_rows(figure, tracks, camera, factor, weights):
-    from ..reconstruct import measurement_rows, prior_rows
-
-    names = [n for n in tracks.names if n in figure.keypoint_names]
-    sub = tracks.select(names)
-    T = (sub.T - 1) * factor + 1
-    meas = measurement_rows(figure, sub, camera, factor, weights)
-    smoothing, limits = prior_rows(figure, T, sub.fps * factor, weights)
-    return meas, smoothing, limits, T
+def _reference_start(problem):
+    """The engine's own start (what ``reconstruct`` starts from without a seed)."""
+    start = keyframe_start if problem.keyframes is not None and len(problem.keyframes) else rest_start
+    return problem.figure.clamp(start(problem), margin=1e-3)
 
 
 @dataclass
@@ -433,7 +426,7 @@ def seed_trajectory(
     ----------
     figure, tracks, camera, keyframes, factor, weights : as :func:`pinrecon.reconstruct`
         receives them (``factor = fps_out / fps``; ``weights`` a
-        :class:`~pinrecon.reconstruct.Weights`).
+        :class:`~pinrecon.problem.Weights`).
     options : :class:`~pinrecon.solver.SolverOptions` of the seeding fit (default 12
         iterations, ``ftol=1e-3``: it only has to land in the right basin; the batch
         solve refines it).
@@ -445,11 +438,6 @@ def seed_trajectory(
     -------
     Seed
     """
-    from ..reconstruct import ReconstructionProblem, Weights, _keyframe_rows, _observable, rest_pose
-    from ..rows import Posture
-    from ..solver import SolverOptions, solve
-    from ..tracks import Keyframes
-
     weights = weights or Weights()
     if keyframes is not None and not isinstance(keyframes, Keyframes):
         keyframes = Keyframes(list(keyframes))
@@ -462,7 +450,8 @@ def seed_trajectory(
     sub = tracks.select(names)
     if keyframes is not None:
         keyframes.validate(figure, sub.T)
-    Q_ref = _reference_start(figure, sub, camera, keyframes, factor, weights)
+    problem = _seed_problem(figure, sub, camera, keyframes, factor, weights)
+    Q_ref = _reference_start(problem)
     lifts, rejected = lift_limbs(
         figure, sub, camera, keyframes, Q_ref=Q_ref, factor=factor, length_tol=length_tol, seed=seed
     )
@@ -482,20 +471,13 @@ def seed_trajectory(
     depth_rows = RelativeDepth(
         camera, np.concatenate(frames), np.concatenate(ka), np.concatenate(kb), np.concatenate(dz), np.concatenate(sig)
     )
-    meas, smoothing, limits, T = _engine_rows(figure, sub, camera, factor, weights)
-    active = _observable(figure, names, keyframes)
-    rows = [meas, limits, smoothing, depth_rows]
-    if weights.sigma_posture is not None:
-        rows.append(Posture(figure, T, rest_pose(figure), weights.sigma_posture, active))
-    if keyframes is not None and len(keyframes):
-        rows += _keyframe_rows(figure, keyframes, factor)
-    problem = ReconstructionProblem(figure, T, rows)
-    res = solve(problem, Q_ref, options or SolverOptions(max_iterations=12, ftol=1e-3), active=active)
+    problem = problem.with_rows([depth_rows])
+    res = solve(problem, Q_ref, options or SolverOptions(max_iterations=12, ftol=1e-3), active=problem.active)
     Q = figure.normalize(res.x)
     if hasattr(camera, "scale") and figure.floating and keyframes is not None and len(keyframes):
         Q = _depth_gauge(Q, Q_ref, camera, sorted({int(k.frame) * factor for k in keyframes}))
     Q = figure.clamp(Q, margin=1e-3)
-    return Seed(Q, Q_ref, lifts, rejected, res, rows)
+    return Seed(Q, Q_ref, lifts, rejected, res, problem.rows)
 
 
 def _depth_gauge(Q, Q_ref, camera, key_frames):
@@ -541,7 +523,7 @@ def default_limbs(figure, names: Sequence[str] | None = None, min_fraction: floa
                     segs.append(sg)
     if not segs:
         return []
-    L, _ = _model_lengths(figure, segs)
+    L, _ = model_lengths(figure, segs)
     return [sg for sg, l in zip(segs, L) if l >= min_fraction * L.max()]
 
 
@@ -607,7 +589,7 @@ def links_report(
     :func:`discover_links` (``sigma``, ``model_tol``, ``max_triples``...).
     """
     names = list(tracks.names if names is None else names)
-    x = _track_array(tracks, names)
+    x = track_array(tracks, names)
     if scale is not None and not (np.isfinite(float(scale)) and float(scale) > 0):
         raise InputError(f"must be a positive number (pixels per metre), got {scale!r}", field="scale")
     g = discover_links(x, names=names, **kwargs)

@@ -89,7 +89,7 @@ def as_motion(
             scale = 1.0 if length_scale is None else length_scale
             obj = load_bvh(p, scale, skip_frames=skip_frames)
         else:
-            from ..reconstruct import load_result
+            from ..result import load_result
 
             obj = load_result(p)
         label = label or p.stem
@@ -128,9 +128,9 @@ def even_frames(n: int, count: int) -> np.ndarray:
 # ---------------------------------------------------------------------------- joint series
 def joint_series(motion: Motion) -> dict[str, tuple[np.ndarray, str]]:
     """Plottable curves: CSV column name -> (values, unit) (degrees or metres)."""
-    from ..io.csv_export import _motion_columns
+    from ..io.csv_export import motion_columns
 
-    names, units, table = _motion_columns(motion.figure, motion.q, motion.times)
+    names, units, table = motion_columns(motion.figure, motion.q, motion.times)
     return {n: (table[:, k], u) for k, (n, u) in enumerate(zip(names, units)) if n != "time"}
 
 

@@ -342,7 +342,7 @@ def plot_result(
 
     Returns the list of files written.
     """
-    from ..reconstruct import load_result
+    from ..result import load_result
 
     result = result_path_or_result
     if isinstance(result, (str, os.PathLike)):

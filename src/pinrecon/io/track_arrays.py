@@ -1,0 +1,30 @@
+"""What the 2D-tracks format readers return: plain arrays, not :class:`pinrecon.Tracks`.
+
+The readers (:mod:`pinrecon.io.tracks_json`, :mod:`pinrecon.io.coco`,
+:mod:`pinrecon.io.openpose_json`) parse a file into a :class:`TrackArrays`;
+:mod:`pinrecon.tracks` is the one place that turns it into a validated ``Tracks``
+(:func:`pinrecon.load_tracks`). So the readers never import ``pinrecon.tracks``.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+__all__ = ["TrackArrays"]
+
+
+class TrackArrays(NamedTuple):
+    """The fields of :class:`pinrecon.Tracks`, in its order, as read from a file.
+
+    ``points`` (T, K, 2) pixels, NaN where missing; ``names`` K point names; ``fps`` as
+    stored in the file (None for formats that store no frame rate: OpenPose, COCO);
+    ``confidence`` (T, K) or None; ``source`` the file or folder read.
+    """
+
+    points: np.ndarray
+    names: list[str]
+    fps: object
+    confidence: np.ndarray | None
+    source: str
