@@ -226,3 +226,175 @@ def test_perspective_rejects_bad_intrinsics():
         InputError, match="field 'K': must be upper triangular with positive focal lengths"
     ):
         Perspective(K, np.eye(3), np.zeros(3))
+
+
+# ---------------------------------------------------------------- lens distortion
+# Coefficients (k1, k2, p1, p2, k3) of real calibrations: OpenCV's tutorial camera
+# (tests/data/calibration/opencv/out_camera_data.yml), OpenCV's ChArUco tutorial camera and a
+# Pose2Sim phone camera (tests/data/calibration/pose2sim/Calib_scene.toml), plus tangential
+# terms large enough to matter.
+REAL_DISTORTIONS = {
+    "opencv-tutorial": [-0.41802327018241026, 0.50715243805833121, 0.0, 0.0, -0.57843596847939704],
+    "opencv-charuco": [0.12136925618707872, -1.0854664722560681, 1.1786843796668460e-04,
+                       -4.6240686046485508e-04, 2.9542589406810080],
+    "pose2sim-phone": [-0.05310342256182765, 0.1510044676505964, -0.00011989435671705446,
+                       0.0006503403122568441, 0.0],
+    "tangential": [-0.28, 0.09, 2.5e-3, -1.7e-3, -0.02],
+}
+
+
+def opencv_projection(K, R, t, dist, X):
+    """OpenCV's pinhole + distortion model, written from the calib3d documentation, one
+    point at a time: x' = x/z, y' = y/z, r^2 = x'^2 + y'^2,
+    x'' = x'(1 + k1 r^2 + k2 r^4 + k3 r^6) + 2 p1 x'y' + p2 (r^2 + 2 x'^2),
+    y'' = y'(1 + k1 r^2 + k2 r^4 + k3 r^6) + p1 (r^2 + 2 y'^2) + 2 p2 x'y',
+    u = fx x'' + cx, v = fy y'' + cy (OpenCV has no skew; with one, u gets + s y'')."""
+    k1, k2, p1, p2, k3 = dist
+    out = []
+    for p in X:
+        x, y, z = R @ p + t
+        xp, yp = x / z, y / z
+        r2 = xp * xp + yp * yp
+        radial = 1 + k1 * r2 + k2 * r2**2 + k3 * r2**3
+        xpp = xp * radial + 2 * p1 * xp * yp + p2 * (r2 + 2 * xp * xp)
+        ypp = yp * radial + p1 * (r2 + 2 * yp * yp) + 2 * p2 * xp * yp
+        out.append([K[0, 0] * xpp + K[0, 1] * ypp + K[0, 2], K[1, 1] * ypp + K[1, 2]])
+    return np.array(out)
+
+
+def distorted_camera(seed, dist, skew=0.0):
+    K = np.array([[1100.0, skew, 950.0], [0.0, 1050.0, 530.0], [0.0, 0.0, 1.0]])
+    return Perspective(K, random_rotation(seed), np.array([0.1, -0.2, 4.0]), dist)
+
+
+def points_in_view(cam, seed, n=40, half_width=0.55):
+    """World points whose normalised image coordinates lie in [-half_width, half_width]^2
+    (about a 60 degree field of view) at depths 1.5 to 6 m."""
+    rng = np.random.default_rng(seed)
+    xy = rng.uniform(-half_width, half_width, size=(n, 2))
+    z = rng.uniform(1.5, 6.0, size=n)
+    x_cam = np.column_stack([xy * z[:, None], z])
+    return (x_cam - cam.t) @ cam.R  # R^T (x_cam - t), row-wise
+
+
+@pytest.mark.parametrize("name", sorted(REAL_DISTORTIONS))
+@pytest.mark.parametrize("skew", [0.0, 0.7])
+def test_distorted_projection_matches_opencv_definition(name, skew):
+    cam = distorted_camera(3, REAL_DISTORTIONS[name], skew)
+    X = points_in_view(cam, 4)
+    expected = opencv_projection(cam.K, cam.R, cam.t, REAL_DISTORTIONS[name], X)
+    np.testing.assert_allclose(cam.project(X), expected, rtol=0, atol=1e-9)
+    uv, _ = cam.project_with_jacobian(X)
+    np.testing.assert_allclose(uv, expected, rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("name", sorted(REAL_DISTORTIONS))
+@pytest.mark.parametrize("seed", [0, 1])
+def test_distorted_jacobian_matches_finite_differences(name, seed):
+    cam = distorted_camera(seed, REAL_DISTORTIONS[name], skew=0.4)
+    X = points_in_view(cam, seed + 20)
+    J = cam.jacobian(X)
+    num = fd_jacobian(cam, X)
+    assert np.abs(J - num).max() / np.abs(num).max() < 1e-6
+    # the distortion changes the Jacobian: it is not the pinhole one
+    pinhole = Perspective(cam.K, cam.R, cam.t)
+    assert np.abs(pinhole.jacobian(X) - J).max() / np.abs(J).max() > 1e-3
+
+
+def test_distortion_default_is_zero_and_changes_nothing():
+    cam = persp(5)
+    assert cam.dist.shape == (5,) and not cam.dist.any() and not cam.has_distortion
+    explicit = Perspective(cam.K, cam.R, cam.t, [0.0, 0.0, 0.0, 0.0, 0.0])
+    X = random_points(5)
+    np.testing.assert_array_equal(explicit.project(X), cam.project(X))
+    np.testing.assert_array_equal(explicit.jacobian(X), cam.jacobian(X))
+    assert "dist" not in cam.to_dict()
+
+
+def test_distortion_leaves_the_principal_ray_alone():
+    cam = distorted_camera(6, REAL_DISTORTIONS["tangential"])
+    on_axis = cam.R.T @ (np.array([0.0, 0.0, 3.0]) - cam.t)
+    np.testing.assert_allclose(cam.project(on_axis), [950.0, 530.0], atol=1e-9)
+
+
+def test_four_coefficients_mean_k3_zero_and_long_opencv_vectors_with_zero_tail_are_accepted():
+    d4 = distorted_camera(1, [-0.2, 0.05, 1e-3, 2e-3])
+    d14 = distorted_camera(1, [-0.2, 0.05, 1e-3, 2e-3, 0.0] + [0.0] * 9)
+    np.testing.assert_array_equal(d4.dist, [-0.2, 0.05, 1e-3, 2e-3, 0.0])
+    np.testing.assert_array_equal(d14.dist, d4.dist)
+
+
+def test_distortion_json_round_trip(tmp_path):
+    cam = distorted_camera(8, REAL_DISTORTIONS["opencv-charuco"], skew=0.3)
+    path = tmp_path / "camera.json"
+    cam.save(path)
+    data = json.loads(path.read_text())
+    assert data["dist"] == REAL_DISTORTIONS["opencv-charuco"]
+    back = load_camera(path)
+    np.testing.assert_array_equal(back.dist, cam.dist)
+    X = points_in_view(cam, 8)
+    np.testing.assert_array_equal(back.project(X), cam.project(X))
+    assert back.to_dict() == cam.to_dict()
+
+
+def test_camera_json_with_four_distortion_coefficients():
+    data = persp(2).to_dict() | {"dist": [-0.1, 0.02, 0.0, 0.001]}
+    cam = camera_from_dict(data)
+    np.testing.assert_array_equal(cam.dist, [-0.1, 0.02, 0.0, 0.001, 0.0])
+
+
+@pytest.mark.parametrize(
+    "dist, message",
+    [
+        ([-0.1, float("nan"), 0.0, 0.0, 0.0], "k2 = nan"),
+        ([-0.1, 0.0, float("inf"), 0.0], "p1 = inf"),
+        ([0.1, 0.2, 0.3], "expected 4 or 5 distortion coefficients"),
+        ([0.1, 0.0, 0.0, 0.0, 0.0, 0.0, 0.5, 0.0], "k5 = 0.5"),
+        ("barrel", "expected a list of numbers"),
+    ],
+    ids=["nan", "inf", "three", "rational", "text"],
+)
+def test_bad_distortion_is_an_input_error_naming_the_field(dist, message, tmp_path):
+    data = persp(1).to_dict() | {"dist": dist}
+    path = tmp_path / "cam.json"
+    path.write_text(json.dumps(data, allow_nan=True))
+    with pytest.raises(InputError) as exc:
+        load_camera(path)
+    assert exc.value.field == "dist" and exc.value.file == str(path)
+    assert message in str(exc.value)
+
+
+def test_normalized_inverts_the_distorted_projection():
+    for name, dist in REAL_DISTORTIONS.items():
+        cam = distorted_camera(9, dist, skew=0.5)
+        X = points_in_view(cam, 9, n=200)
+        x_cam = cam.camera_points(X)
+        np.testing.assert_allclose(
+            cam.normalized(cam.project(X)), x_cam[:, :2] / x_cam[:, 2:], rtol=0, atol=1e-10,
+            err_msg=name,
+        )
+
+
+def test_look_at_takes_distortion():
+    cam = Perspective.look_at([0.0, 1.0, 4.0], [0.0, 1.0, 0.0], dist=REAL_DISTORTIONS["tangential"])
+    np.testing.assert_array_equal(cam.dist, REAL_DISTORTIONS["tangential"])
+    np.testing.assert_allclose(cam.project(np.array([0.0, 1.0, 0.0])), [960.0, 540.0], atol=1e-9)
+
+
+def test_distorted_projection_matches_cv2_project_points():
+    """Skipped only when OpenCV is not installed (it is not a test dependency: the
+    opencv-python-headless wheel is about 61 MB)."""
+    cv2 = pytest.importorskip("cv2")
+    for name, dist in REAL_DISTORTIONS.items():
+        cam = distorted_camera(11, dist)  # OpenCV's camera matrix has no skew
+        X = points_in_view(cam, 11, n=100)
+        rvec = cv2.Rodrigues(cam.R)[0]
+        uv_cv, jac_cv = cv2.projectPoints(X, rvec, cam.t, cam.K, np.asarray(dist, float))
+        np.testing.assert_allclose(
+            cam.project(X), uv_cv.reshape(-1, 2), rtol=0, atol=1e-9, err_msg=name
+        )
+        # cv2's Jacobian w.r.t. tvec is d uv / d x_cam; ours times R^T gives the same.
+        d_uv_d_t = jac_cv[:, 3:6].reshape(-1, 2, 3)
+        np.testing.assert_allclose(
+            cam.jacobian(X) @ cam.R.T, d_uv_d_t, rtol=1e-7, atol=1e-7, err_msg=name
+        )

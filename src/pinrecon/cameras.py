@@ -6,7 +6,8 @@ world -> camera (``R_cam_world``), so a world point X has camera coordinates
 
 * :class:`Orthographic`: ``u = s * (R X)[:2] + c`` with scale ``s`` in pixels per metre
   and image centre ``c`` in pixels. Depth (camera z) is lost.
-* :class:`Perspective`: ``x_cam = R X + t``, ``u = (K x_cam)[:2] / z`` with intrinsics K.
+* :class:`Perspective`: ``x_cam = R X + t``, ``u = (K x_cam)[:2] / z`` with intrinsics K,
+  optionally with OpenCV's lens distortion (k1, k2, p1, p2, k3) applied to ``x_cam[:2] / z``.
 
 Both project arrays of shape (..., 3) and give the analytic Jacobian d u / d X of
 shape (..., 2, 3). Both round-trip through JSON (see ``docs/formats.md``).
@@ -29,9 +30,94 @@ __all__ = [
     "load_camera",
     "camera_from_dict",
     "look_at_rotation",
+    "distort_normalized",
+    "distortion_jacobian",
+    "DISTORTION_NAMES",
 ]
 
 _ROT_TOL = 1e-6
+
+DISTORTION_NAMES = ("k1", "k2", "p1", "p2", "k3")
+# OpenCV's distCoeffs come as 4, 5, 8, 12 or 14 numbers: (k1, k2, p1, p2[, k3[, k4, k5, k6
+# [, s1, s2, s3, s4[, tau_x, tau_y]]]]). Only the first five are modelled here.
+_OPENCV_DIST_LENGTHS = (4, 5, 8, 12, 14)
+_OPENCV_EXTRA_NAMES = ("k4", "k5", "k6", "s1", "s2", "s3", "s4", "tau_x", "tau_y")
+
+
+def _as_distortion(value, field="dist", file=None) -> np.ndarray:
+    """OpenCV distortion coefficients -> (5,) array (k1, k2, p1, p2, k3).
+
+    Accepts any of OpenCV's lengths (0, 4, 5, 8, 12, 14); terms past k3 (rational,
+    thin-prism, tilt) must be zero, since this camera model does not include them.
+    """
+    if value is None:
+        return np.zeros(5)
+    try:
+        arr = np.asarray(value, dtype=float).ravel()
+    except (TypeError, ValueError):
+        raise InputError(
+            "expected a list of numbers (k1, k2, p1, p2[, k3])", file=file, field=field
+        ) from None
+    n = arr.size
+    if n != 0 and n not in _OPENCV_DIST_LENGTHS:
+        raise InputError(
+            f"expected 4 or 5 distortion coefficients (k1, k2, p1, p2[, k3]) as OpenCV "
+            f"orders them, or OpenCV's 8, 12 or 14 with the extra terms zero; got {n}",
+            file=file,
+            field=field,
+        )
+    names = DISTORTION_NAMES + _OPENCV_EXTRA_NAMES
+    bad = [f"{names[i]} = {arr[i]}" for i in range(n) if not np.isfinite(arr[i])]
+    if bad:
+        raise InputError(
+            "distortion coefficients must be finite numbers, got " + ", ".join(bad),
+            file=file,
+            field=field,
+        )
+    extra = [f"{_OPENCV_EXTRA_NAMES[i - 5]} = {arr[i]:g}" for i in range(5, n) if arr[i] != 0.0]
+    if extra:
+        raise InputError(
+            "only OpenCV's k1, k2, p1, p2, k3 distortion model is supported; the rational, "
+            f"thin-prism and tilt terms must be zero, got {', '.join(extra)}",
+            file=file,
+            field=field,
+        )
+    out = np.zeros(5)
+    out[: min(n, 5)] = arr[:5]
+    return out
+
+
+def distort_normalized(xy: np.ndarray, dist: np.ndarray) -> np.ndarray:
+    """OpenCV's lens distortion of normalised image points ``xy = x_cam[:2] / z`` (..., 2).
+
+    With ``r2 = x^2 + y^2`` and ``radial = 1 + k1 r2 + k2 r2^2 + k3 r2^3``::
+
+        x_d = x radial + 2 p1 x y + p2 (r2 + 2 x^2)
+        y_d = y radial + p1 (r2 + 2 y^2) + 2 p2 x y
+    """
+    k1, k2, p1, p2, k3 = dist
+    x, y = xy[..., 0], xy[..., 1]
+    r2 = x * x + y * y
+    radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
+    xd = x * radial + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x)
+    yd = y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y
+    return np.stack([xd, yd], axis=-1)
+
+
+def distortion_jacobian(xy: np.ndarray, dist: np.ndarray) -> np.ndarray:
+    """d distort_normalized / d xy, shape (..., 2, 2)."""
+    k1, k2, p1, p2, k3 = dist
+    x, y = xy[..., 0], xy[..., 1]
+    r2 = x * x + y * y
+    radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
+    d_radial = k1 + r2 * (2.0 * k2 + 3.0 * k3 * r2)  # d radial / d r2
+    cross = 2.0 * x * y * d_radial + 2.0 * p1 * x + 2.0 * p2 * y  # d xd/dy = d yd/dx
+    J = np.empty(xy.shape[:-1] + (2, 2))
+    J[..., 0, 0] = radial + 2.0 * x * x * d_radial + 2.0 * p1 * y + 6.0 * p2 * x
+    J[..., 0, 1] = cross
+    J[..., 1, 0] = cross
+    J[..., 1, 1] = radial + 2.0 * y * y * d_radial + 6.0 * p1 * y + 2.0 * p2 * x
+    return J
 
 
 def _as_matrix(value, shape, field, file):
@@ -169,18 +255,25 @@ class Orthographic(Camera):
 
 @dataclass(frozen=True, eq=False)
 class Perspective(Camera):
-    """Pinhole camera: ``x_cam = R X + t``, ``u = (K x_cam)[:2] / x_cam[2]``.
+    """Pinhole camera with OpenCV's lens distortion.
+
+    ``x_cam = R X + t``; normalised point ``(x, y) = x_cam[:2] / x_cam[2]``; distorted
+    ``(x_d, y_d) = distort_normalized((x, y), dist)``; pixels ``u = K[:2] @ (x_d, y_d, 1)``.
+    Without distortion (the default) this is ``u = (K x_cam)[:2] / x_cam[2]``.
 
     Parameters
     ----------
     K : (3, 3) intrinsics, upper triangular with last row (0, 0, 1), positive focal lengths.
     R : (3, 3) rotation world -> camera.
     t : (3,) translation world -> camera (metres).
+    dist : OpenCV distortion coefficients (k1, k2, p1, p2[, k3]); default all zero. Stored
+        as a (5,) array. OpenCV's longer vectors are accepted when the extra terms are zero.
     """
 
     K: np.ndarray
     R: np.ndarray
     t: np.ndarray
+    dist: np.ndarray = None
     model = "perspective"
 
     def __post_init__(self):
@@ -193,37 +286,94 @@ class Perspective(Camera):
         object.__setattr__(self, "K", K)
         object.__setattr__(self, "R", _check_rotation(self.R))
         object.__setattr__(self, "t", _as_matrix(self.t, (3,), "t", None))
+        object.__setattr__(self, "dist", _as_distortion(self.dist))
+
+    @property
+    def has_distortion(self) -> bool:
+        return bool(np.any(self.dist != 0.0))
 
     def camera_points(self, p_world):
         return np.asarray(p_world, float) @ self.R.T + self.t
 
     def project(self, p_world):
         x_cam = self.camera_points(p_world)
-        w = x_cam @ self.K.T
-        return w[..., :2] / w[..., 2:3]
+        if not self.has_distortion:
+            w = x_cam @ self.K.T
+            return w[..., :2] / w[..., 2:3]
+        xy_d = distort_normalized(x_cam[..., :2] / x_cam[..., 2:3], self.dist)
+        return xy_d @ self.K[:2, :2].T + self.K[:2, 2]
 
     def project_with_jacobian(self, p_world):
         x_cam = self.camera_points(p_world)
-        w = x_cam @ self.K.T
-        z = w[..., 2:3]
-        uv = w[..., :2] / z
-        # d uv / d x_cam = (K[:2] - uv (x) K[2]) / z ; then chain with R.
-        d_uv_d_xcam = (self.K[:2] - uv[..., :, None] * self.K[2]) / z[..., None]
+        if not self.has_distortion:
+            w = x_cam @ self.K.T
+            z = w[..., 2:3]
+            uv = w[..., :2] / z
+            # d uv / d x_cam = (K[:2] - uv (x) K[2]) / z ; then chain with R.
+            d_uv_d_xcam = (self.K[:2] - uv[..., :, None] * self.K[2]) / z[..., None]
+            return uv, d_uv_d_xcam @ self.R
+        z = x_cam[..., 2:3]
+        xy = x_cam[..., :2] / z
+        uv = distort_normalized(xy, self.dist) @ self.K[:2, :2].T + self.K[:2, 2]
+        # d xy / d x_cam = [I_2, -xy] / z
+        d_xy_d_xcam = np.concatenate(
+            [np.broadcast_to(np.eye(2), xy.shape[:-1] + (2, 2)), -xy[..., :, None]], axis=-1
+        ) / z[..., None]
+        d_uv_d_xcam = self.K[:2, :2] @ distortion_jacobian(xy, self.dist) @ d_xy_d_xcam
         return uv, d_uv_d_xcam @ self.R
+
+    def normalized(self, uv_px, iterations: int = 20) -> np.ndarray:
+        """Undistorted normalised coordinates ``x_cam[:2] / z`` of pixels ``uv_px`` (..., 2).
+
+        Inverts K, then the distortion by Newton's method (exact to ~1e-12 inside the image
+        for realistic lenses); a point where the distortion polynomial folds over (far
+        outside the calibrated field of view) keeps its last iterate.
+        """
+        uv = np.asarray(uv_px, float)
+        y_d = (uv[..., 1] - self.K[1, 2]) / self.K[1, 1]
+        x_d = (uv[..., 0] - self.K[0, 2] - self.K[0, 1] * y_d) / self.K[0, 0]
+        target = np.stack([x_d, y_d], axis=-1)
+        if not self.has_distortion:
+            return target
+        xy = target.copy()
+        for _ in range(iterations):
+            resid = distort_normalized(xy, self.dist) - target
+            if not np.any(np.abs(resid) > 1e-14):
+                break
+            J = distortion_jacobian(xy, self.dist)
+            det = J[..., 0, 0] * J[..., 1, 1] - J[..., 0, 1] * J[..., 1, 0]
+            ok = np.abs(det) > 1e-12
+            det = np.where(ok, det, 1.0)
+            dx = (J[..., 1, 1] * resid[..., 0] - J[..., 0, 1] * resid[..., 1]) / det
+            dy = (J[..., 0, 0] * resid[..., 1] - J[..., 1, 0] * resid[..., 0]) / det
+            xy = xy - np.where(ok[..., None], np.stack([dx, dy], axis=-1), 0.0)
+        return xy
 
     def depth(self, p_world):
         return self.camera_points(p_world)[..., 2]
 
     def to_dict(self):
-        return {"model": "perspective", "K": self.K.tolist(), "R": self.R.tolist(), "t": self.t.tolist()}
+        out = {"model": "perspective", "K": self.K.tolist(), "R": self.R.tolist()}
+        out["t"] = self.t.tolist()
+        if self.has_distortion:
+            out["dist"] = self.dist.tolist()
+        return out
 
     @classmethod
-    def look_at(cls, eye_world, target_world, up_world=(0, 1, 0), f_px=1000.0, center=(960.0, 540.0)):
+    def look_at(
+        cls,
+        eye_world,
+        target_world,
+        up_world=(0, 1, 0),
+        f_px=1000.0,
+        center=(960.0, 540.0),
+        dist=None,
+    ):
         """Camera at ``eye_world`` looking at ``target_world``."""
         eye = np.asarray(eye_world, float)
         R = look_at_rotation(np.asarray(target_world, float) - eye, up_world)
         K = np.array([[f_px, 0, center[0]], [0, f_px, center[1]], [0, 0, 1.0]])
-        return cls(K, R, -R @ eye)
+        return cls(K, R, -R @ eye, dist)
 
 
 def camera_from_dict(data: dict, file=None) -> Camera:
@@ -241,7 +391,7 @@ def camera_from_dict(data: dict, file=None) -> Camera:
             for key in ("K", "R", "t"):
                 if key not in data:
                     raise InputError("is required for a perspective camera", field=key)
-            return Perspective(data["K"], data["R"], data["t"])
+            return Perspective(data["K"], data["R"], data["t"], data.get("dist"))
     except InputError as exc:
         raise exc.located(file=file) from None
     raise InputError(
