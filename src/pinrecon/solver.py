@@ -21,6 +21,19 @@ diagonal of H (the paper's stabilising ``kI``, scaled and made adaptive with
 Nielsen's update), optionally with geodesic acceleration. A step is accepted only if it lowers the cost and gives finite
 residuals; otherwise it is rejected, said so in the report, and the damping grows.
 The returned trajectory is never NaN.
+
+**Global unknowns.** A problem may also have a few time-invariant unknowns ``g``
+(``solve(..., g0=...)``; the problem is then evaluated as ``evaluate(x, jacobian, g)``
+and row blocks carry ``Jg``/``gcols``). The normal equations become an arrowhead,
+
+    [A   B] [dx]     [g_x]
+    [B^T C] [dg] = - [g_g],   A banded (T nv), B (T nv, n_g), C (n_g, n_g),
+
+both diagonal blocks damped. With ``A = L L^T`` (the same banded Cholesky) and
+``Z = L^-1 B`` (one banded triangular solve per global), the Schur complement
+``S = C - Z^T Z`` is a small dense SPD matrix: ``dg = S^-1 (-g_g - Z^T z)`` with
+``z = L^-1 (-g_x)``, then ``dx = L^-T (z - Z dg)``. Time and memory stay linear in T;
+``g`` is retracted by plain addition (log factors are additive).
 """
 
 from __future__ import annotations
@@ -30,10 +43,12 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.linalg import LinAlgError, cho_factor, cho_solve
 from scipy.linalg.lapack import dpbtrf as _pbtrf
 from scipy.linalg.lapack import dpbtrs as _pbtrs
+from scipy.linalg.lapack import dtbtrs as _tbtrs
 
-__all__ = ["SolverOptions", "IterationReport", "SolveResult", "solve", "BandedNormalEquations"]
+__all__ = ["SolverOptions", "IterationReport", "SolveResult", "solve", "BandedNormalEquations", "ArrowheadFactor"]
 
 
 @dataclass
@@ -111,6 +126,7 @@ class SolveResult:
     report: list[IterationReport] = field(default_factory=list)
     time: float = 0.0
     initial_cost: float = float("nan")
+    g: np.ndarray | None = None  # the global unknowns at the solution (None without globals)
 
 
 def _costs(blocks) -> dict[str, float]:
@@ -120,8 +136,8 @@ def _costs(blocks) -> dict[str, float]:
     return out
 
 
-def _blocks_times(blocks, dx):
-    """J v for every row block, v = dx (T, nv)."""
+def _blocks_times(blocks, dx, dg=None):
+    """J v for every row block, v = (dx (T, nv), dg (n_g,) or None)."""
     out = []
     for b in blocks:
         jv = np.zeros_like(b.r)
@@ -129,8 +145,19 @@ def _blocks_times(blocks, dx):
         for i in range(b.frames.shape[1]):
             d = dx[b.frames[:, i]][:, cols]
             jv += b.J[:, i] * d if b.diagonal else np.einsum("nmc,nc->nm", b.J[:, i], d)
+        if dg is not None and b.Jg is not None and b.r.size:
+            jv += np.einsum("nmg,g->nm", b.Jg, dg[np.asarray(b.gcols, dtype=int)])
         out.append(jv)
     return out
+
+
+def _globals_gradient(blocks, residuals, n_g):
+    """J_g^T r over the blocks' global columns for residuals ``residuals`` (list of (N, m))."""
+    gg = np.zeros(n_g)
+    for b, r in zip(blocks, residuals):
+        if b.Jg is not None and r.size:
+            np.add.at(gg, np.asarray(b.gcols, dtype=int), np.einsum("nmg,nm->g", b.Jg, r))
+    return gg
 
 
 def _flatten(blocks):
@@ -252,6 +279,38 @@ class BandedNormalEquations:
                                 self._scatter(Dd[int(d)], cols_f, Bs, (k[None, :, :],))
         return D0, Dd, g.reshape(-1)
 
+    def assemble_globals(self, blocks, n_g: int):
+        """The border of the arrowhead: ``B = J_x^T J_g`` (T nv, n_g), ``C = J_g^T J_g``
+        (n_g, n_g) and ``g_g = J_g^T r`` (n_g,), from the blocks' ``Jg``/``gcols``."""
+        T, nv = self.T, self.nv
+        B = np.zeros((n_g, T, nv)).transpose(1, 2, 0)  # (T, nv, n_g), column-major as (T nv, n_g)
+        C = np.zeros((n_g, n_g))
+        gg = np.zeros(n_g)
+        for b in blocks:
+            if b.Jg is None or b.r.size == 0:
+                continue
+            gc = np.asarray(b.gcols, dtype=int)
+            Jg = b.Jg
+            Jflat = Jg.reshape(-1, len(gc))
+            C[np.ix_(gc, gc)] += Jflat.T @ Jflat
+            gg[gc] += Jflat.T @ b.r.reshape(-1)
+            cols = np.asarray(b.cols)
+            if len(cols) == 0:
+                continue
+            all_g = len(gc) == n_g and np.array_equal(gc, np.arange(n_g))
+            full = all_g and len(cols) == nv and np.array_equal(cols, np.arange(nv))
+            for i in range(b.frames.shape[1]):
+                if b.diagonal:
+                    Bi = b.J[:, i][:, :, None] * Jg  # (N, c, g)
+                else:
+                    Bi = np.matmul(b.J[:, i].transpose(0, 2, 1), Jg)  # (N, c, g)
+                fi = b.frames[:, i]
+                if full:
+                    self._scatter(B, fi, Bi, ())
+                else:
+                    self._scatter(B, fi, Bi, (cols[None, :, None], gc[None, None, :]))
+        return B.reshape(T * nv, n_g), C, gg
+
     def gradient(self, blocks, residuals) -> np.ndarray:
         """J^T r for the blocks' Jacobians and other residuals ``residuals`` (list of (N, m))."""
         g = np.zeros((self.T, self.nv))
@@ -283,7 +342,55 @@ class BandedNormalEquations:
         return ab
 
 
-def solve(problem, x0, options=None, callback=None, active=None) -> SolveResult:
+class ArrowheadFactor:
+    """Factor ``[[A, B], [B^T, C]]`` (A banded in LAPACK lower storage, already damped;
+    B (N, n_g) dense; C (n_g, n_g), already damped) once, then solve for any right-hand
+    side through the Schur complement (see the module docstring).
+
+    ``ab`` is overwritten by its Cholesky factor. Raises :class:`scipy.linalg.LinAlgError`
+    when A or the Schur complement is not positive definite. Without a border (``B`` is
+    ``None`` or has no column) this is the plain banded solve ``dpbtrs``.
+    """
+
+    def __init__(self, ab: np.ndarray, B: np.ndarray | None = None, C: np.ndarray | None = None):
+        c, info = _pbtrf(ab, lower=1, overwrite_ab=1)  # in place: no copy of the band
+        if info != 0:
+            raise LinAlgError(f"banded Cholesky failed (info {info})")
+        self.c = c
+        self.n_g = 0 if B is None else B.shape[1]
+        self.Z = self.S = None
+        if self.n_g:
+            # Z = L^-1 B, one banded forward substitution per global that couples to the
+            # motion (a column of B that is zero, e.g. a held global, stays zero)
+            coupled = np.flatnonzero(np.abs(B).max(axis=0) > 0) if B.shape[0] else np.zeros(0, int)
+            if len(coupled) == self.n_g:
+                Z, info = _tbtrs(c, B, uplo="L", trans="N")
+            else:
+                Z, info = np.zeros(B.shape, order="F"), 0
+                if len(coupled):
+                    Z[:, coupled], info = _tbtrs(c, B[:, coupled], uplo="L", trans="N")
+            if info != 0:
+                raise LinAlgError(f"banded triangular solve failed (info {info})")
+            S = C - Z.T @ Z
+            self.Z, self.S = Z, cho_factor(S, lower=True, check_finite=False)
+
+    def solve(self, b_x: np.ndarray, b_g: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray | None]:
+        """``(x, y)`` with ``A x + B y = b_x`` and ``B^T x + C y = b_g``."""
+        if not self.n_g:
+            x, info = _pbtrs(self.c, b_x, lower=1)
+            if info != 0:
+                raise LinAlgError(f"banded solve failed (info {info})")
+            return x, (None if b_g is None else np.zeros(0))
+        z, info = _tbtrs(self.c, b_x[:, None], uplo="L", trans="N")
+        z = z[:, 0]
+        y = cho_solve(self.S, b_g - self.Z.T @ z, check_finite=False)
+        x, info2 = _tbtrs(self.c, (z - self.Z @ y)[:, None], uplo="L", trans="T")
+        if info or info2:
+            raise LinAlgError("banded triangular solve failed")
+        return x[:, 0], y
+
+
+def solve(problem, x0, options=None, callback=None, active=None, g0=None, active_globals=None) -> SolveResult:
     """Minimise ``0.5 sum |r|^2`` over the trajectory starting from ``x0``.
 
     Parameters
@@ -293,14 +400,18 @@ def solve(problem, x0, options=None, callback=None, active=None) -> SolveResult:
     options : :class:`SolverOptions`.
     callback : called with each :class:`IterationReport`; return True to stop early.
     active : optional (nv,) bool, tangent indices that may move (others stay fixed).
+    g0 : optional (n_g,) start of the global unknowns. Given, the problem is evaluated
+        as ``problem.evaluate(x, jacobian, g)`` and the result's ``g`` is their solution;
+        omitted (``None``), the solve is exactly the motion-only one.
+    active_globals : optional (n_g,) bool, globals that may move (others stay fixed).
     """
     opt = options or SolverOptions()
     if opt.blas_threads is None:
-        return _solve(problem, x0, opt, callback, active)
+        return _solve(problem, x0, opt, callback, active, g0, active_globals)
     from threadpoolctl import threadpool_limits
 
     with threadpool_limits(limits=opt.blas_threads, user_api="blas"):
-        return _solve(problem, x0, opt, callback, active)
+        return _solve(problem, x0, opt, callback, active, g0, active_globals)
 
 
 def _solve(
@@ -309,12 +420,20 @@ def _solve(
     options: SolverOptions | None = None,
     callback: Callable[[IterationReport], bool | None] | None = None,
     active: np.ndarray | None = None,
+    g0: np.ndarray | None = None,
+    active_globals: np.ndarray | None = None,
 ) -> SolveResult:
     opt = options
     t_start = time.perf_counter()
     T, nv = problem.n_frames, problem.nv
     x = np.array(x0, float)
-    blocks = _flatten(problem.evaluate(x, True))
+    gv = None if g0 is None else np.array(g0, float).reshape(-1)
+    n_g = 0 if gv is None else gv.size
+
+    def evaluate(xx, gg, jacobian):
+        return _flatten(problem.evaluate(xx, jacobian) if gg is None else problem.evaluate(xx, jacobian, gg))
+
+    blocks = evaluate(x, gv, True)
     costs = _costs(blocks)
     cost = sum(costs.values())
     if not np.isfinite(cost):
@@ -328,6 +447,9 @@ def _solve(
         frozen_cols = np.where(~active)[0]
         # Dd entries (compressed per frame distance) in a frozen row or column
         frozen_dd = {d: np.isin(a, frozen_cols) | np.isin(c, frozen_cols) for d, (a, c) in normal.entries.items()}
+    frozen_g = np.zeros(0, dtype=int)
+    if active_globals is not None and n_g:
+        frozen_g = np.where(~np.asarray(active_globals, bool))[0]
     lam = opt.damping
     nu = 2.0
     report: list[IterationReport] = []
@@ -338,6 +460,7 @@ def _solve(
         """Normal equations at the current blocks; frozen entries get zero rows and
         columns and a unit diagonal (their steps are exactly zero)."""
         D0, Dd, g = normal.assemble(blocks)
+        border = normal.assemble_globals(blocks, n_g) if n_g else None
         if frozen is not None:
             D0[:, frozen_cols, :] = 0.0
             D0[:, :, frozen_cols] = 0.0
@@ -345,14 +468,29 @@ def _solve(
             for d, mask in frozen_dd.items():
                 Dd[d][:, mask] = 0.0
             g[frozen] = 0.0
-        return D0, Dd, g
+            if border is not None:
+                border[0][frozen] = 0.0
+        if border is not None and len(frozen_g):
+            B, C, gg = border
+            B[:, frozen_g] = 0.0
+            C[frozen_g, :] = 0.0
+            C[:, frozen_g] = 0.0
+            C[frozen_g, frozen_g] = 1.0
+            gg[frozen_g] = 0.0
+        return D0, Dd, g, border
 
-    D0, Dd, g = linearise(blocks)
+    def grad_norm(g, border):
+        m = float(np.max(np.abs(g))) if g.size else 0.0
+        if border is not None and n_g:
+            m = max(m, float(np.max(np.abs(border[2]))))
+        return m
+
+    D0, Dd, g, border = linearise(blocks)
     band_buffer = np.empty((normal.kd + 1, T * nv))
     ab = normal.band(D0, Dd, band_buffer)
     it = 0
     while it < opt.max_iterations:
-        gnorm = float(np.max(np.abs(g))) if g.size else 0.0
+        gnorm = grad_norm(g, border)
         if gnorm <= opt.gtol * (1.0 + cost):
             status, converged = "gtol", True
             break
@@ -360,39 +498,64 @@ def _solve(
         if ab is None:  # the last factorisation overwrote the band: rebuild it
             ab = normal.band(D0, Dd, band_buffer)
         diag = ab[0].copy()
-        dscale = np.maximum(diag, opt.diag_floor * max(float(diag.max()), 1e-300))
+        dmax = float(diag.max())
+        if n_g:
+            diag_g = np.diag(border[1]).copy()
+            dmax = max(dmax, float(diag_g.max()))
+        dscale = np.maximum(diag, opt.diag_floor * max(dmax, 1e-300))
         ab[0] += lam * dscale
-        c, info = _pbtrf(ab, lower=1, overwrite_ab=1)  # in place: no copy of the band
+        dscale_g = None
+        why, dx, dg = None, None, None
+        try:
+            if n_g:
+                dscale_g = np.maximum(diag_g, opt.diag_floor * max(dmax, 1e-300))
+                fac = ArrowheadFactor(ab, border[0], border[1] + lam * np.diag(dscale_g))
+                dx, dg = fac.solve(-g, -border[2])
+            else:
+                fac = ArrowheadFactor(ab)
+                dx, _ = fac.solve(-g)
+            if not (np.all(np.isfinite(dx)) and (dg is None or np.all(np.isfinite(dg)))):
+                why = "non-finite step"
+        except LinAlgError:
+            why, dx, dg = "factorisation failed", None, None
         ab = None
-        if info == 0:
-            dx, info2 = _pbtrs(c, -g, lower=1)
-            why = None if info2 == 0 and np.all(np.isfinite(dx)) else "non-finite step"
-        else:
-            why, dx = "factorisation failed", None
-        v_lm = dx  # the Levenberg-Marquardt step, whose decrease the quadratic model predicts
+        v_lm, vg_lm = dx, dg  # the Levenberg-Marquardt step, whose decrease the quadratic model predicts
         if why is None and opt.geodesic_acceleration:
             # second directional derivative of the residuals along v = dx, by finite
             # differences on the manifold: r'' ~ 2/h ((r(x (+) h v) - r(x)) / h - J v)
             h = opt.geodesic_h
             v = dx.reshape(T, nv)
-            r_h = _flatten(problem.evaluate(problem.retract(x, h * v), False))
-            jv = _blocks_times(blocks, v)
+            r_h = evaluate(problem.retract(x, h * v), None if gv is None else gv + h * dg, False)
+            jv = _blocks_times(blocks, v, dg)
             rpp = [(2.0 / h) * ((bh.r - b.r) / h - j) for bh, b, j in zip(r_h, blocks, jv)]
             g2 = normal.gradient(blocks, rpp)
+            g2g = _globals_gradient(blocks, rpp, n_g) if n_g else None
             if frozen is not None:
                 g2[frozen] = 0.0
-            acc = _pbtrs(c, -g2, lower=1)[0]
-            if np.all(np.isfinite(acc)) and np.linalg.norm(acc) <= opt.geodesic_alpha * np.linalg.norm(dx):
+            if n_g and len(frozen_g):
+                g2g[frozen_g] = 0.0
+            acc, acc_g = fac.solve(-g2, g2g if g2g is None else -g2g)
+            acc_all = acc if acc_g is None else np.concatenate([acc, acc_g])
+            step_all = dx if dg is None else np.concatenate([dx, dg])
+            small = np.linalg.norm(acc_all) <= opt.geodesic_alpha * np.linalg.norm(step_all)
+            if np.all(np.isfinite(acc_all)) and small:
                 dx = dx + 0.5 * acc
-            elif np.all(np.isfinite(acc)):
+                if dg is not None:
+                    dg = dg + 0.5 * acc_g
+            elif np.all(np.isfinite(acc_all)):
                 why = "geodesic acceleration too large"
-        step_norm = float(np.linalg.norm(dx)) if dx is not None else 0.0
+        step_norm = 0.0
+        if dx is not None:
+            step_norm = float(np.sqrt(dx @ dx + (0.0 if dg is None else dg @ dg)))
         if why is None:
             x_new = problem.retract(x, dx.reshape(T, nv))
-            new_blocks = _flatten(problem.evaluate(x_new, True))
+            g_new = None if gv is None else gv + dg
+            new_blocks = evaluate(x_new, g_new, True)
             new_costs = _costs(new_blocks)
             new_cost = sum(new_costs.values())
             predicted = 0.5 * (float(-g @ v_lm) + lam * float(v_lm @ (dscale * v_lm)))
+            if n_g:
+                predicted += 0.5 * (float(-border[2] @ vg_lm) + lam * float(vg_lm @ (dscale_g * vg_lm)))
             rho = (cost - new_cost) / predicted if predicted > 0 else -1.0
             if not (np.isfinite(new_cost) and np.all(np.isfinite(x_new))):
                 why = "non-finite residuals"
@@ -402,9 +565,9 @@ def _solve(
             lam = max(lam * max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3), 1e-15)
             nu = 2.0
             old_cost = cost
-            x, blocks, costs, cost = x_new, new_blocks, new_costs, new_cost
-            D0, Dd, g = linearise(blocks)
-            rep = _rep(it, cost, costs, step_norm, lam, float(np.max(np.abs(g))) if g.size else 0.0, True, t_start)
+            x, gv, blocks, costs, cost = x_new, g_new, new_blocks, new_costs, new_cost
+            D0, Dd, g, border = linearise(blocks)
+            rep = _rep(it, cost, costs, step_norm, lam, grad_norm(g, border), True, t_start)
         else:
             lam, nu = lam * nu, nu * 2.0
             rep = _rep(it, cost, costs, step_norm, lam, gnorm, False, t_start, why)
@@ -416,13 +579,15 @@ def _solve(
             if old_cost - cost <= opt.ftol * cost:
                 status, converged = "ftol", True
                 break
-            if step_norm <= opt.xtol * (np.sqrt(T * nv) + step_norm):
+            if step_norm <= opt.xtol * (np.sqrt(T * nv + n_g) + step_norm):
                 status, converged = "xtol", True
                 break
         elif lam > opt.max_damping:
             status = "no_progress"
             break
-    return _result(x, cost, costs, it, converged, status, report, t_start, initial_cost)
+    res = _result(x, cost, costs, it, converged, status, report, t_start, initial_cost)
+    res.g = gv
+    return res
 
 
 def _rep(it, cost, costs, step, lam, gnorm, accepted, t_start, message=""):

@@ -1,6 +1,8 @@
 """Row kinds: each returns residuals and Jacobian blocks for the frames it touches."""
 
 from .base import RowBlock, RowKind, State
+from .global_prior import GlobalPrior
+from .intrinsics import CameraScale
 from .keyframes import JointKeyframes
 from .limits import JointLimits
 from .measurement import Measurement2D
@@ -19,4 +21,6 @@ __all__ = [
     "smoothing_sigmas",
     "JointKeyframes",
     "Posture",
+    "GlobalPrior",
+    "CameraScale",
 ]

@@ -5,6 +5,16 @@ that knows which frames it touches and, for a trajectory state, returns a
 :class:`RowBlock`: whitened residuals ``r`` (cost ``0.5 |r|^2``) and their Jacobian
 blocks with respect to the tangent spaces of the frames each row group touches.
 The solver only sees RowBlocks, so adding a row kind never touches the solver.
+
+**Global unknowns.** Besides the per-frame tangents a problem may have a small vector
+``g`` of time-invariant unknowns (segment log-scale factors, camera log-focal length).
+A row kind that depends on some of them returns their Jacobian columns in
+``RowBlock.Jg`` (dense, one (m, c_g) matrix per row group) with ``RowBlock.gcols`` the
+indices into ``g`` they cover; row kinds that do not depend on globals leave both
+``None``. A row group may touch no frame at all (``frames`` of shape (N, 0), e.g. a
+prior on ``g``). The :class:`State` carries ``g`` and, when the figure's proportions are
+unknowns, the keypoints of the figure scaled by them with their derivatives
+``dpoints_dglobals`` (see :mod:`pinrecon.proportions`).
 """
 
 from __future__ import annotations
@@ -33,6 +43,9 @@ class RowBlock:
     name : row kind, for the per-kind cost report.
     diagonal : whether J is stored as diagonal blocks (see J).
     cost_value : the row kind's own cost when it is not 0.5 |r|^2 (robust losses).
+    Jg : (N, m, c_g) derivative of r[n] w.r.t. the global unknowns ``g[gcols]``, or
+        ``None`` (no dependence on globals, or not requested).
+    gcols : (c_g,) indices into the global vector ``g`` that ``Jg`` covers.
     """
 
     frames: np.ndarray
@@ -42,6 +55,8 @@ class RowBlock:
     name: str
     diagonal: bool = False
     cost_value: float | None = None
+    Jg: np.ndarray | None = None
+    gcols: np.ndarray | None = None
 
     @property
     def cost(self) -> float:
@@ -71,15 +86,36 @@ class State:
 
     ``points[slot[t]]`` (K, 3) and ``jacobians[slot[t]]`` (K, 3, nv) for frames t in
     ``frames``; computed once, shared by every row kind.
+
+    With global unknowns: ``g`` (n_g,) their current values. With ``proportions`` (a
+    :class:`pinrecon.proportions.Proportions`) the figure's log-scale factors are
+    ``g[proportion_cols]`` (default ``0 .. n-1``): ``points`` and ``jacobians`` are those of
+    the figure scaled by them, and ``dpoints_dglobals[slot[t]]`` (K, 3, n) holds
+    d p_world / d g[proportion_cols] (``None`` without proportions or Jacobians).
     """
 
-    def __init__(self, figure, Q: np.ndarray, frames: np.ndarray, jacobian: bool):
+    def __init__(self, figure, Q: np.ndarray, frames: np.ndarray, jacobian: bool, g=None, proportions=None,
+                 proportion_cols=None):
         self.figure = figure
         self.Q = Q
         self.frames = frames
+        self.g = None if g is None else np.asarray(g, float)
+        self.proportions = proportions
+        self.dpoints_dglobals = None
+        self.proportion_cols = np.zeros(0, dtype=int)
         self.slot = np.full(Q.shape[0], -1, dtype=int)
         self.slot[frames] = np.arange(len(frames))
-        if len(frames):
+        if proportions is not None:
+            if self.g is None:
+                raise ValueError("State: proportions need the global vector g")
+            cols = np.arange(proportions.n) if proportion_cols is None else np.asarray(proportion_cols, dtype=int)
+            self.proportion_cols = cols
+            log_factors = self.g[cols]
+            if jacobian:
+                self.points, self.jacobians, self.dpoints_dglobals = proportions.kinematics(log_factors, Q[frames])
+            else:
+                self.points, self.jacobians = proportions.keypoints(log_factors, Q[frames]), None
+        elif len(frames):
             if jacobian:
                 self.points, self.jacobians = figure.keypoint_jacobians(Q[frames])
             else:

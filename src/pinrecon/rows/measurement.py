@@ -5,6 +5,11 @@ For frame t and keypoint k observed at ``uv_obs``:
 ``sqrt(w_tk) / sigma_px * d pi / d X * J_k(q_t)`` (``J_k`` the keypoint Jacobian).
 A missing point contributes zero rows. Optional robust loss (Huber or Cauchy, scale in
 pixels) is applied by iteratively reweighting each point's two rows.
+
+Global unknowns: with the figure's proportions in the state, ``d r / d theta =
+sqrt(w) / sigma_px * d pi / d X * d p_k / d theta``; with ``intrinsics`` (a
+:class:`pinrecon.rows.CameraScale`) the camera is the one at ``g`` and
+``d r / d log f = sqrt(w) / sigma_px * (uv - c)``.
 """
 
 from __future__ import annotations
@@ -28,12 +33,17 @@ class Measurement2D(RowKind):
     weights : (N, M) per-point weights (confidence), 0 where missing.
     sigma_px : pixel standard deviation.
     loss : ``"l2"``, ``"huber"`` or ``"cauchy"``; ``loss_scale_px`` its scale.
+    intrinsics : optional :class:`pinrecon.rows.CameraScale` making the camera's
+        log scale / log focal length the global unknown ``g[intrinsics.col]``.
     """
 
     name = "measurement"
 
-    def __init__(self, camera, frames, keypoints, uv_px, weights, sigma_px=2.0, loss="l2", loss_scale_px=None):
+    def __init__(
+        self, camera, frames, keypoints, uv_px, weights, sigma_px=2.0, loss="l2", loss_scale_px=None, intrinsics=None
+    ):
         self.camera = camera
+        self.intrinsics = intrinsics
         self.frames = np.asarray(frames, dtype=int)
         self.kinematic_frames = self.frames
         self.keypoints = np.asarray(keypoints, dtype=int)
@@ -67,13 +77,20 @@ class Measurement2D(RowKind):
             w = 1.0 / np.sqrt(1.0 + s / (c * c))
         return rho, w
 
+    def camera_at(self, state: State):
+        """The camera at the state's globals (the fixed camera without intrinsics)."""
+        if self.intrinsics is None or state.g is None:
+            return self.camera
+        return self.intrinsics.camera(state.g)
+
     def evaluate(self, state: State, jacobian: bool = True) -> RowBlock:
         slots = state.slot[self.frames]
         P = state.points[slots][:, self.keypoints]  # (N, M, 3)
+        camera = self.camera_at(state)
         if jacobian:
-            uv, d_uv = self.camera.project_with_jacobian(P)  # (N, M, 2), (N, M, 2, 3)
+            uv, d_uv = camera.project_with_jacobian(P)  # (N, M, 2), (N, M, 2, 3)
         else:
-            uv = self.camera.project(P)
+            uv = camera.project(P)
         err = (uv - self.uv_filled) * self.sqrt_w[..., None]
         scale, cost = self.sqrt_w, None
         if self.loss != "l2":
@@ -82,18 +99,33 @@ class Measurement2D(RowKind):
             scale, cost = self.sqrt_w * rw, 0.5 * float(rho.sum())
         N, M = len(self.frames), len(self.keypoints)
         r = err.reshape(N, 2 * M)
-        J = None
+        J = Jg = gcols = None
         if jacobian:
             Jk = state.jacobians[slots][:, self.keypoints]  # (N, M, 3, nv)
-            if hasattr(self.camera, "scale"):  # orthographic: d uv / d X is one constant 2x3 matrix
-                J = np.matmul(self.camera.scale * self.camera.R[:2], Jk) * scale[..., None, None]
+            ortho = hasattr(camera, "scale")  # orthographic: d uv / d X is one constant 2x3 matrix
+            if ortho:
+                J = np.matmul(camera.scale * camera.R[:2], Jk) * scale[..., None, None]
             else:
                 J = np.matmul(d_uv * scale[..., None, None], Jk)
             J = J.reshape(N, 1, 2 * M, -1)
-        return RowBlock(self.frames[:, None], r, J, np.arange(state.figure.nv), self.name, cost_value=cost)
+            parts, cols = [], []
+            if state.dpoints_dglobals is not None and len(state.proportion_cols):
+                dP = state.dpoints_dglobals[slots][:, self.keypoints]  # (N, M, 3, n)
+                d = camera.scale * camera.R[:2] if ortho else d_uv
+                parts.append(np.matmul(d, dP))
+                cols.append(state.proportion_cols)
+            if self.intrinsics is not None and state.g is not None:
+                parts.append(self.intrinsics.d_uv(uv)[..., None])
+                cols.append([self.intrinsics.col])
+            if parts:
+                Jg = (np.concatenate(parts, axis=-1) * scale[..., None, None]).reshape(N, 2 * M, -1)
+                gcols = np.concatenate([np.asarray(c, dtype=int) for c in cols])
+        return RowBlock(
+            self.frames[:, None], r, J, np.arange(state.figure.nv), self.name, cost_value=cost, Jg=Jg, gcols=gcols
+        )
 
     def reprojection_error_px(self, state: State) -> np.ndarray:
         """(N, M) pixel distance between projection and observation, NaN where missing."""
         P = state.points[state.slot[self.frames]][:, self.keypoints]
-        d = np.linalg.norm(self.camera.project(P) - self.uv_px, axis=-1)
+        d = np.linalg.norm(self.camera_at(state).project(P) - self.uv_px, axis=-1)
         return np.where(self.observed, d, np.nan)

@@ -2,7 +2,8 @@
 
 For frame t and keypoint k observed at world position ``X`` (metres):
 ``r = sqrt(w) (p_k(q_t) - X) / sigma_m``, Jacobian ``sqrt(w) / sigma_m * J_k(q_t)``.
-Missing markers (NaN) contribute zero rows.
+Missing markers (NaN) contribute zero rows. With the figure's proportions as global
+unknowns (in the state), ``d r / d theta = sqrt(w) / sigma_m * d p_k / d theta``.
 """
 
 from __future__ import annotations
@@ -48,8 +49,11 @@ class Points3D(RowKind):
         P = state.points[slots][:, self.keypoints]
         N, M = len(self.frames), len(self.keypoints)
         r = ((P - self.p_filled) * self.sqrt_w[..., None]).reshape(N, 3 * M)
-        J = None
+        J = Jg = gcols = None
         if jacobian:
             Jk = state.jacobians[slots][:, self.keypoints] * self.sqrt_w[..., None, None]
             J = Jk.reshape(N, 1, 3 * M, -1)
-        return RowBlock(self.frames[:, None], r, J, np.arange(state.figure.nv), self.name)
+            if state.dpoints_dglobals is not None and len(state.proportion_cols):
+                dP = state.dpoints_dglobals[slots][:, self.keypoints] * self.sqrt_w[..., None, None]
+                Jg, gcols = dP.reshape(N, 3 * M, -1), state.proportion_cols
+        return RowBlock(self.frames[:, None], r, J, np.arange(state.figure.nv), self.name, Jg=Jg, gcols=gcols)
