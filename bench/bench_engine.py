@@ -17,6 +17,14 @@ plus pinrecon's weak posture prior. Start: the keyframes' poses interpolated (wh
    sparse Jacobian (to separate the linear algebra from the finite differences). The
    ratio compares scipy's time with the time pinrecon first reaches scipy's final cost.
 
+4. Calibration (issue 9): the same problem with the figure's proportions and the
+   camera's scale as global unknowns (``calibrate="lengths+camera"``: the 9 proportion
+   groups COCO-17 sees and the orthographic scale, eliminated by the Schur complement).
+   Speed: seconds per iteration over the same fixed number of iterations from the same
+   start, with and without; memory: the calibrated columns of table 2. The motion-only
+   rows of tables 1-3 are built with ``calibrate="none"`` (the human's default would be
+   ``"lengths"`` with these keyframes).
+
 Run: ``OPENBLAS_NUM_THREADS=1 python bench/bench_engine.py`` (about 15 minutes; use
 ``--scipy-frames 200`` for a quicker scipy comparison, ``--skip-scipy``, ``--skip-memory``).
 Prints markdown tables.
@@ -37,7 +45,7 @@ import numpy as np
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 
-def build(n_frames, seed=0):
+def build(n_frames, seed=0, calibrate="none"):
     from pinrecon.reconstruct import build_problem
     from pinrecon.synthetic import human_walk, point_keyframes, project_tracks, side_camera
 
@@ -46,7 +54,7 @@ def build(n_frames, seed=0):
     tracks = project_tracks(fig, q, cam, fps=30.0, noise_px=1.0, seed=seed + 1)
     keys = point_keyframes(fig, q, range(0, n_frames, 8), sigma_m=0.02, seed=seed + 2)
     t = time.perf_counter()
-    setup = build_problem(fig, tracks, cam, keys)
+    setup = build_problem(fig, tracks, cam, keys, calibrate=calibrate)
     return fig, q, setup, time.perf_counter() - t
 
 
@@ -63,21 +71,24 @@ def run_pinrecon(setup, ftol=None, max_iterations=100, geodesic=False):
     if ftol is not None:
         kw["ftol"] = ftol
     opts = SolverOptions(**kw)
-    res = solve(setup.problem, setup.q0, opts, callback=cb, active=setup.active)
+    res = solve(setup.problem, setup.q0, opts, callback=cb, active=setup.active, g0=setup.g0)
     return res, trace
 
 
-def mpjpe_mm(fig, qa, qb):
-    return 1000 * float(np.linalg.norm(fig.keypoints(qa) - fig.keypoints(qb), axis=-1).mean())
+def mpjpe_mm(fig, qa, qb, problem=None, g=None):
+    """MPJPE of ``qa`` against ``qb``; with a calibrated ``problem``, ``qa``'s keypoints
+    are those of the figure scaled by the globals ``g``."""
+    pa = fig.keypoints(qa) if problem is None or g is None else problem.keypoints(qa, g)
+    return 1000 * float(np.linalg.norm(pa - fig.keypoints(qb), axis=-1).mean())
 
 
 # --------------------------------------------------------------------------- memory
-def memory_child(n_frames):
+def memory_child(n_frames, calibrate="none"):
     """Solve n_frames in this (fresh) process and print JSON with time and peak RSS."""
     import tracemalloc
 
     base_rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
-    fig, q, setup, t_build = build(n_frames)
+    fig, q, setup, t_build = build(n_frames, calibrate=calibrate)
     after_build = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     tracemalloc.start()
     res, trace = run_pinrecon(setup)
@@ -96,24 +107,28 @@ def memory_child(n_frames):
                 rss_before_solve_mb=after_build / 1024,
                 rss_at_start_mb=base_rss / 1024,
                 solve_traced_peak_mb=peak_traced / 2**20,
-                mpjpe_mm=mpjpe_mm(fig, res.x, q),
+                mpjpe_mm=mpjpe_mm(fig, res.x, q, setup.problem, res.g),
+                calibrate=calibrate,
             )
         )
     )
 
 
-def memory_table(sizes):
-    rows = []
-    for n in sizes:
-        out = subprocess.run(
-            [sys.executable, __file__, "--memory-child", str(n)],
-            capture_output=True,
-            text=True,
-            env={**os.environ, "OPENBLAS_NUM_THREADS": "1"},
-        )
-        if out.returncode != 0:
-            raise RuntimeError(out.stderr[-2000:])
-        rows.append(json.loads(out.stdout.strip().splitlines()[-1]))
+def _child(n, calibrate):
+    out = subprocess.run(
+        [sys.executable, __file__, "--memory-child", str(n), "--child-calibrate", calibrate],
+        capture_output=True,
+        text=True,
+        env={**os.environ, "OPENBLAS_NUM_THREADS": "1"},
+    )
+    if out.returncode != 0:
+        raise RuntimeError(out.stderr[-2000:])
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def memory_table(sizes, calibration=True):
+    rows = [_child(n, "none") for n in sizes]
+    cal = [_child(n, "lengths+camera") for n in sizes] if calibration else []
     print("\n### Time and memory against the number of frames\n")
     print("| frames | iterations | solve (s) | s / iteration | peak RSS (MB) | solver's own peak allocation (MB) | MPJPE (mm) |")
     print("|---:|---:|---:|---:|---:|---:|---:|")
@@ -128,6 +143,17 @@ def memory_table(sizes):
             f"\nSolver allocation per frame: {1024 * a['solve_traced_peak_mb'] / a['frames']:.0f} KB at {a['frames']} frames, "
             f"{1024 * b['solve_traced_peak_mb'] / b['frames']:.0f} KB at {b['frames']} frames (linear in T)."
         )
+    if cal:
+        print("\n### Calibration column: lengths+camera (10 globals) against motion only\n")
+        print("| frames | s / iteration, motion only | s / iteration, calibrated | ratio | solver peak (MB), motion only | "
+              "solver peak (MB), calibrated | MPJPE calibrated (mm) |")
+        print("|---:|---:|---:|---:|---:|---:|---:|")
+        for a, b in zip(rows, cal):
+            print(
+                f"| {a['frames']} | {a['s_per_iteration']:.3f} | {b['s_per_iteration']:.3f} | "
+                f"{b['s_per_iteration'] / a['s_per_iteration']:.2f} | {a['solve_traced_peak_mb']:.0f} | "
+                f"{b['solve_traced_peak_mb']:.0f} | {b['mpjpe_mm']:.1f} |"
+            )
     return rows
 
 
@@ -287,6 +313,25 @@ def speed_table(n_frames):
         )
 
 
+def calibration_speed(n_frames, iterations=10, repeats=3):
+    """CPU seconds per iteration with and without the globals, same start, same number
+    of iterations (ftol 0: no early stop), best of ``repeats`` interleaved runs each (CPU
+    time of this process: steadier than wall time on a shared machine)."""
+    setups = {mode: build(n_frames, calibrate=mode)[2] for mode in ("none", "lengths+camera")}
+    best = {mode: np.inf for mode in setups}
+    for _ in range(repeats):
+        for mode, setup in setups.items():
+            c0 = time.process_time()
+            res, _ = run_pinrecon(setup, ftol=0.0, max_iterations=iterations)
+            best[mode] = min(best[mode], (time.process_time() - c0) / max(res.iterations, 1))
+    print(f"\n### Calibration: cost per iteration ({n_frames} frames, {iterations} iterations from the same start, "
+          f"best of {repeats})\n")
+    print("| calibrate | globals | CPU s / iteration | ratio |")
+    print("|---|---:|---:|---:|")
+    for mode, setup in setups.items():
+        print(f"| {mode} | {setup.problem.n_globals} | {best[mode]:.3f} | {best[mode] / best['none']:.2f} |")
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--frames", type=int, default=1000)
@@ -295,17 +340,23 @@ def main():
     ap.add_argument("--skip-scipy", action="store_true")
     ap.add_argument("--skip-memory", action="store_true")
     ap.add_argument("--no-analytic", action="store_true", help="skip scipy with the analytic Jacobian")
+    ap.add_argument("--skip-calibration", action="store_true", help="skip the calibration rows and columns")
+    ap.add_argument("--skip-speed", action="store_true", help="skip table 1")
     ap.add_argument("--memory-child", type=int, help=argparse.SUPPRESS)
+    ap.add_argument("--child-calibrate", default="none", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.memory_child:
-        memory_child(args.memory_child)
+        memory_child(args.memory_child, args.child_calibrate)
         return
     import platform
 
     print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}, OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS')}")
-    speed_table(args.frames)
+    if not args.skip_speed:
+        speed_table(args.frames)
+    if not args.skip_calibration:
+        calibration_speed(args.frames)
     if not args.skip_memory:
-        memory_table(args.memory_sizes)
+        memory_table(args.memory_sizes, calibration=not args.skip_calibration)
     if not args.skip_scipy:
         scipy_table(args.scipy_frames, analytic=not args.no_analytic)
 

@@ -444,7 +444,7 @@ def test_export_result_human(tmp_path):
     res = result_of(fig, Q, camera=pinrecon.Orthographic.from_view([0, 0, -1], scale=300))
     res.save(tmp_path / "r.npz")
     written = export_result(
-        tmp_path / "r.npz", bvh=tmp_path / "o" / "r.bvh", csv=tmp_path / "o" / "r.csv"
+        tmp_path / "r.npz", bvh=tmp_path / "o" / "r.bvh", csv=tmp_path / "o" / "r.csv", ground=False
     )
     assert written == [tmp_path / "o" / "r.bvh", tmp_path / "o" / "r.csv"]
     assert_round_trip(fig, Q, tmp_path / "o" / "r.bvh")
@@ -457,7 +457,7 @@ def test_export_result_human(tmp_path):
 def test_export_result_bvh_figure(tmp_path, walk_motion):
     res = result_of(walk_motion.figure, walk_motion.q[:30], fps=walk_motion.fps)
     res.save(tmp_path / "w.npz")
-    (out,) = export_result(tmp_path / "w.npz", bvh=tmp_path / "w.bvh")
+    (out,) = export_result(tmp_path / "w.npz", bvh=tmp_path / "w.bvh", ground=False, units=None)
     assert read_bvh(out).names == read_bvh(WALK).names
     assert_round_trip(walk_motion.figure, walk_motion.q[:30], out, CMU)
 

@@ -118,10 +118,12 @@ def test_joint_limits_per_tangent_index(human):
     assert names[:6] == [f"root_joint.{c}" for c in ("vx", "vy", "vz", "wx", "wy", "wz")]
     assert np.all(np.isneginf(human.lower_v[:6])) and np.all(np.isposinf(human.upper_v[:6]))
     assert not human.limited_v[:6].any() and human.limited_v[6:].all()
+    # anatomical limits over the URDF's (docs/limits.md): knee flexion 0-150 deg (one way),
+    # hip abduction 55 / adduction 35 deg (published ranges widened by about 10 deg)
     knee = names.index("left_knee_Z")
-    assert (human.lower_v[knee], human.upper_v[knee]) == (0.0, 3.14159)
+    np.testing.assert_allclose((human.lower_v[knee], human.upper_v[knee]), np.radians([0.0, 150.0]), rtol=0, atol=1e-12)
     hip = names.index("left_hip_X")
-    assert (human.lower_v[hip], human.upper_v[hip]) == (-1.047196667, 1.570795)
+    np.testing.assert_allclose((human.lower_v[hip], human.upper_v[hip]), np.radians([-35.0, 55.0]), rtol=0, atol=1e-12)
     assert human.joint_slices("left_knee_Z") == (slice(10, 11), slice(9, 10)) and knee == 9
 
 

@@ -139,16 +139,18 @@ def test_file_size(name):
 # the layers below it, never one above.
 LAYERS = [
     ("base", ["pinrecon.errors", "pinrecon._resources", "pinrecon.rotations", "pinrecon.io", "pinrecon.io.atomic",
-              "pinrecon.io.jsonfile", "pinrecon.io.track_arrays"]),
+              "pinrecon.io.jsonfile", "pinrecon.io.track_arrays", "pinrecon.kinematics"]),
     ("domain", ["pinrecon.figure", "pinrecon.figure_bvh", "pinrecon.cameras", "pinrecon.tracks", "pinrecon.layouts",
                 "pinrecon.proportions", "pinrecon.io.bvh_format", "pinrecon.io.bvh_urdf", "pinrecon.io.bvh",
-                "pinrecon.io.coco", "pinrecon.io.openpose", "pinrecon.io.openpose_json",
+                "pinrecon.io.coco", "pinrecon.io.openpose", "pinrecon.io.openpose_json", "pinrecon.io.mmpose",
+                "pinrecon.io.people", "pinrecon.io.detections", "pinrecon.io.asf", "pinrecon.joint_limits",
                 "pinrecon.io.tracks_json", "pinrecon.io.calibration", "pinrecon.io.results"]),
-    ("rows and solver", ["pinrecon.rows", "pinrecon.solver"]),
-    ("problem", ["pinrecon.problem"]),
+    ("rows and solver", ["pinrecon.rows", "pinrecon.banded", "pinrecon.solver"]),
+    ("problem", ["pinrecon.problem", "pinrecon.contact"]),
     ("starts", ["pinrecon.starts", "pinrecon.planarity"]),
     ("result", ["pinrecon.result"]),
-    ("pipeline", ["pinrecon.reconstruct", "pinrecon.synthetic"]),
+    ("pipeline", ["pinrecon.reconstruct", "pinrecon.synthetic", "pinrecon.faults", "pinrecon.metrics",
+                  "pinrecon.windowed"]),
     ("exports and pictures", ["pinrecon.io.bvh_export", "pinrecon.io.csv_export", "pinrecon.viz"]),
     ("applications", ["pinrecon.cli", "pinrecon.demo", "pinrecon.workbench", "pinrecon"]),
 ]

@@ -5,25 +5,68 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+import warnings
 
 from .errors import PinreconError
 
 __all__ = ["main"]
 
 
-def _figure_from_args(args):
+def _human_keypoints(tracks) -> str:
+    """The human keypoint map for these tracks: their detector layout's map
+    (:mod:`pinrecon.layouts`), else the bundled map sharing most names (COCO-17 on a tie)."""
+    from .figure import load_keypoint_map
+    from .layouts import LAYOUTS, human_keypoint_maps
+
+    tracks = [t for t in (tracks or []) if t is not None]
+    for t in tracks:
+        lay = LAYOUTS.get(getattr(t, "layout", None) or "")
+        if lay is not None and lay.human_map:
+            return lay.human_map
+    names = {n for t in tracks for n in t.names}
+    maps = human_keypoint_maps()
+    shared = {m: len(names & {k.name for k in load_keypoint_map(p)}) for m, p in maps.items()}
+    best = max(shared.values(), default=0)
+    return "coco17" if best == 0 or shared.get("coco17") == best else max(shared, key=shared.get)
+
+
+def _figure_from_args(args, tracks=None):
+    from pathlib import Path
+
+    from .errors import InputError
     from .figure import Figure
+    from .layouts import human_keypoint_maps
 
     spec = args.figure
     if spec == "human":
-        fig = Figure.human(args.keypoints or "coco17")
-    elif spec.lower().endswith(".bvh"):
-        fig = Figure.from_bvh(spec, args.length_scale, lock=args.lock or ())
-        if args.keypoints:
-            fig = fig.with_keypoints(args.keypoints)
+        fig = Figure.human(args.keypoints or _human_keypoints(tracks))
+    elif spec.lower().endswith(".bvh") or spec.lower().endswith(".urdf") or Path(spec).is_file():
+        if args.keypoints and not Path(args.keypoints).is_file():
+            raise InputError(
+                f"no such keypoint-map file {args.keypoints!r} (the bundled maps "
+                f"{', '.join(human_keypoint_maps())} are for --figure human)",
+                field="--keypoints",
+            )
+        if spec.lower().endswith(".bvh"):
+            fig = Figure.from_bvh(spec, args.length_scale, lock=args.lock or ())
+            if args.keypoints:
+                fig = fig.with_keypoints(args.keypoints)
+        else:
+            fig = Figure.from_urdf(spec, args.keypoints)
     else:
-        fig = Figure.from_urdf(spec, args.keypoints)
+        hint = " (did you mean 'human'?)" if spec.lower() == "human" else ""
+        raise InputError(
+            f"{spec!r} is not 'human' and no such file{hint}: valid choices are 'human', a URDF file (.urdf) "
+            "or a BVH file (.bvh)",
+            field="--figure",
+        )
+    if getattr(args, "limits", None):
+        fig = fig.with_limits(args.limits)
     return fig
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None):
+    print(f"pinrecon: warning: {message}", file=sys.stderr)
 
 
 class _Progress:
@@ -59,29 +102,108 @@ class _Progress:
             self.dirty = False
 
 
+def _cameras_for_tracks(camera_files, tracks_files):
+    """The cameras of every ``--camera`` file, in order (a file's cameras in the file's
+    order), one per ``--tracks``; a mismatch is one clear error listing them."""
+    from .errors import InputError
+    from .io.calibration import load_cameras
+
+    cams = [c for path in camera_files for c in load_cameras(path)]
+    if len(cams) != len(tracks_files):
+        listed = ", ".join(f"{c.name!r}" for c in cams)
+        raise InputError(
+            f"{len(tracks_files)} --tracks but the --camera files hold {len(cams)} cameras ({listed}): give one "
+            "--tracks per camera, in this order",
+            field="--camera",
+        )
+    return cams
+
+
 def cmd_reconstruct(args) -> int:
-    from .cameras import load_camera
     from .problem import Weights
     from .reconstruct import reconstruct
     from .solver import SolverOptions
     from .tracks import load_keyframes, load_tracks
 
-    fig = _figure_from_args(args)
-    tracks = load_tracks(args.tracks, fps=args.fps)
-    cam = load_camera(args.camera)
+    auto = _auto_camera_from_args(args)
+    cams = [auto] if auto is not None else _cameras_for_tracks(args.camera, args.tracks)
+    tracks = [load_tracks(path, fps=args.fps, person=args.person, layout=args.layout) for path in args.tracks]
+    fig = _figure_from_args(args, tracks)
+    if len(tracks) == 1:  # one camera: plain arguments, as the Python API takes them
+        tracks, cam = tracks[0], cams[0]
+    else:
+        cam = cams
     kf = load_keyframes(args.keyframes) if args.keyframes else None
     wkw = {k: getattr(args, k) for k in ("sigma_px", "acc_root_translation", "acc_root_rotation", "acc_joints", "sigma_limits", "loss") if getattr(args, k, None) is not None}
     opts = SolverOptions(max_iterations=args.max_iterations)
     progress = _Progress(args.quiet, args.max_iterations)
     res = reconstruct(
-        fig, tracks, cam, kf, fps_out=args.fps_out, weights=Weights(**wkw), options=opts, callback=progress, seed=args.seed
+        fig, tracks, cam, kf, fps_out=args.fps_out, weights=Weights(**wkw), options=opts, callback=progress, seed=args.seed,
+        calibrate=args.calibrate, **_feet_from_args(args),
     )
     progress.close()
     res.save(args.out)
+    written = [args.out]
+    if args.save_figure:
+        written += res.save_figure(args.save_figure)
+    if args.save_camera:
+        written += _save_cameras(res, args.save_camera)
     if not args.quiet:
         print(res.summary(), file=sys.stderr)
-        print(f"wrote {args.out}", file=sys.stderr)
+        for path in written:
+            print(f"wrote {path}", file=sys.stderr)
     return 0
+
+
+def _auto_camera_from_args(args):
+    """The :class:`~pinrecon.starts.camera_auto.AutoCamera` of ``--camera auto`` (or
+    ``auto:orthographic``), ``None`` for camera files; auto with several --tracks, or
+    --image-size/--fov without auto, is one clear error."""
+    from .errors import InputError
+    from .starts.camera_auto import DEFAULT_FOV_DEG, AutoCamera
+
+    specs = [c for c in args.camera if c.split(":")[0] == "auto"]
+    if not specs:
+        if args.image_size is not None or args.fov is not None:
+            raise InputError("--image-size and --fov are for --camera auto", field="--camera")
+        return None
+    if len(args.camera) != 1 or len(args.tracks) != 1:
+        raise InputError("--camera auto is for one --tracks and no other --camera", field="--camera")
+    proj = specs[0].split(":", 1)[1] if ":" in specs[0] else "perspective"
+    return AutoCamera(args.image_size, proj, DEFAULT_FOV_DEG if args.fov is None else args.fov)
+
+
+def _save_cameras(res, path) -> list[str]:
+    """``--save-camera``: the (fitted) camera as a pinrecon camera JSON; with several
+    cameras, one file per camera (``<stem>_<name>.json``)."""
+    from pathlib import Path
+
+    path = Path(path)
+    if len(res.cameras) <= 1:
+        res.camera.save(path)
+        return [str(path)]
+    out = []
+    for name, cam in zip(res.camera_names, res.cameras):
+        p = path.with_name(f"{path.stem}_{name}{path.suffix or '.json'}")
+        cam.save(p)
+        out.append(str(p))
+    return out
+
+
+def _feet_from_args(args) -> dict:
+    """``floor`` and ``contact`` for :func:`pinrecon.reconstruct` from ``--floor`` / ``--contact``."""
+    floor, contact = getattr(args, "floor", None), getattr(args, "contact", None)
+    if contact not in (None, "auto", "none"):
+        from .io.jsonfile import read_json
+
+        contact = read_json(contact)
+        if not isinstance(contact, dict):
+            from .errors import InputError
+
+            raise InputError("expected an object {foot keypoint: [[first, last], ...]}", file=args.contact)
+    elif contact == "none":
+        contact = False
+    return {"floor": floor, "contact": contact}
 
 
 def cmd_demo(args) -> int:
@@ -89,7 +211,8 @@ def cmd_demo(args) -> int:
 
     progress = _Progress(args.quiet, 100)
     if not args.quiet:
-        print(f"pinrecon demo: reconstructing the bundled CMU walk into {args.out}/", file=sys.stderr)
+        print(f"pinrecon demo: reconstructing the bundled CMU walk into {args.out}/ (the lab setting, then your "
+              "video: detector output, the generic human, no keyframes)", file=sys.stderr)
     summary = run_demo(args.out, frames=args.frames, pictures=not args.no_pictures, callback=progress)
     progress.close()
     print(summary.table())
@@ -106,6 +229,10 @@ def cmd_demo(args) -> int:
             f"--out {args.out}/result2.npz",
             file=sys.stderr,
         )
+        if summary.video:
+            print(f"and your video's (no keyframes) with:\n  pinrecon reconstruct --figure human "
+                  f"--tracks {args.out}/your_video/tracks.json --camera {args.out}/your_video/camera.json "
+                  f"--out {args.out}/your_video/result2.npz", file=sys.stderr)
     return 0
 
 
@@ -126,6 +253,7 @@ def cmd_plot(args) -> int:
         animation=not args.no_animation,
         truth_length_scale=args.truth_length_scale,
         truth_skip_frames=args.truth_skip_frames,
+        tracks_fps=args.fps,
     )
     for f in files:
         print(f)
@@ -135,12 +263,25 @@ def cmd_plot(args) -> int:
 def cmd_export(args) -> int:
     from .io.bvh_export import export_result
 
+    if getattr(args, "html", None):
+        from .workbench.html_export import export_html
+
+        print(export_html(args.result, args.html))
+        if not (args.bvh or args.csv):
+            return 0
     if not (args.bvh or args.csv):
         print("pinrecon export: nothing to do: give --bvh and/or --csv", file=sys.stderr)
         return 2
-    for f in export_result(args.result, bvh=args.bvh, csv=args.csv):
+    for f in export_result(args.result, bvh=args.bvh, csv=args.csv, ground=not args.as_reconstructed, up=args.up,
+                           units=None if args.units == "own" else args.units, facing=args.facing):
         print(f)
     return 0
+
+
+def cmd_edit(args) -> int:
+    from .workbench.app import edit_from_args
+
+    return edit_from_args(args, _figure_from_args(args) if args.figure else None)
 
 
 def cmd_links(args) -> int:
@@ -148,7 +289,7 @@ def cmd_links(args) -> int:
     from .planarity import links_report
     from .tracks import load_tracks
 
-    tracks = load_tracks(args.tracks, fps=args.fps)
+    tracks = load_tracks(args.tracks, fps=args.fps, person=args.person, layout=args.layout)
     scale = args.scale
     if scale is None and args.camera:
         cam = load_camera(args.camera)
@@ -157,31 +298,87 @@ def cmd_links(args) -> int:
     return 0
 
 
+def _detector_options(parser) -> None:
+    from .layouts import LAYOUTS
+
+    parser.add_argument(
+        "--layout",
+        help="the detector's point layout: " + ", ".join(LAYOUTS) + " (default: from the file, or by geometry)",
+    )
+    parser.add_argument(
+        "--person",
+        help="who to follow in detector output with several people: an index in the first frame with people, "
+        "a box x1,y1,x2,y2 around them in the first frame they appear, or 'largest' (each frame's most "
+        "prominent person, no following); default: the most prominent person of the first frame",
+    )
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="pinrecon",
-        description="Reconstruct 3D figure motion from 2D joint tracks seen by one camera.",
+        description="Reconstruct 3D figure motion from 2D joint tracks seen by one or more cameras.",
     )
     sub = p.add_subparsers(dest="command", required=True)
 
     r = sub.add_parser("reconstruct", help="batch-reconstruct a motion from 2D tracks")
     r.add_argument("--figure", required=True, help="'human', a URDF file, or a BVH file (its skeleton)")
-    r.add_argument("--keypoints", help="keypoint map JSON (for 'human': coco17 or joints)")
+    r.add_argument(
+        "--keypoints",
+        help="keypoint map JSON, or for 'human' a bundled map: coco17, body25, body25b, halpe26, joints "
+        "(default: the map of the tracks' detector layout)",
+    )
     r.add_argument("--length-scale", type=float, default=1.0, help="metres per BVH unit (CMU: 0.056444)")
     r.add_argument("--lock", nargs="*", help="BVH joints to weld (zero rotation)")
-    r.add_argument("--tracks", required=True, help="tracks JSON/NPZ, OpenPose folder or COCO JSON")
+    r.add_argument(
+        "--tracks", required=True, action="append",
+        help="tracks JSON/NPZ, OpenPose folder or COCO JSON; repeat it for several cameras (one per camera, "
+        "in the cameras' order; every camera's tracks start at the same instant)",
+    )
     r.add_argument("--fps", type=float, help="frame rate of OpenPose/COCO tracks")
-    r.add_argument("--camera", required=True, help="camera JSON")
+    _detector_options(r)
+    r.add_argument(
+        "--camera", required=True, action="append",
+        help="camera or calibration file: pinrecon camera JSON, Pose2Sim/Sports2D TOML, OpenCV YAML/XML/JSON; "
+        "repeat it for several cameras. Cameras pair with --tracks in order: a file holding several cameras "
+        "(a Pose2Sim TOML) gives them in the file's order, so give its cameras' --tracks in that order. "
+        "'auto' (one --tracks, no calibration): a perspective camera with the principal point at the image "
+        "centre (--image-size), the focal length from a 60 degree field of view (--fov) refined in the solve, "
+        "the world placed at the camera unless point keyframes give its pose; 'auto:orthographic' likewise",
+    )
+    r.add_argument("--image-size", type=float, nargs=2, metavar=("W", "H"),
+                   help="image width and height in pixels, for --camera auto")
+    r.add_argument("--fov", type=float, help="starting horizontal field of view of --camera auto, degrees (default 60)")
+    r.add_argument("--save-camera", metavar="FILE.json",
+                   help="write the (fitted) camera as a pinrecon camera JSON, for reuse with --camera FILE.json")
     r.add_argument("--keyframes", help="keyframes JSON")
     r.add_argument("--fps-out", type=float, help="reconstruction rate (integer multiple of the tracks' rate)")
-    r.add_argument("--seed", choices=["planarity"], help="start from the planarity seed")
+    r.add_argument("--seed", choices=["auto", "rest", "keyframes", "planarity", "hypotheses"],
+                   help="the start (default auto: the multi-hypothesis start when keyframes are absent or sparse, "
+                   "the keyframe start when they are dense)")
+    r.add_argument("--limits", help="joint limits to apply to the figure: a limits JSON, or a CMU ASF skeleton "
+                   "(its limits onto a CMU BVH figure)")
     r.add_argument("--sigma-px", type=float, help="2D noise, pixels (default 2)")
-    r.add_argument("--loss", choices=["l2", "huber", "cauchy"], help="measurement loss (default l2)")
+    r.add_argument("--loss", choices=["auto", "l2", "huber", "cauchy"],
+                   help="measurement loss (default auto: cauchy when the tracks carry confidences, else l2)")
     r.add_argument("--acc-root-translation", type=float, help="smoothing: root acceleration sd, m/s^2")
     r.add_argument("--acc-root-rotation", type=float, help="smoothing: root angular acceleration sd, rad/s^2")
     r.add_argument("--acc-joints", type=float, help="smoothing: joint acceleration sd, rad/s^2")
     r.add_argument("--sigma-limits", type=float, help="joint-limit barrier sd, rad")
     r.add_argument("--max-iterations", type=int, default=100)
+    r.add_argument("--floor", help="feet on the ground: 'auto' (estimated under the feet), 'y=0' / 'z=0', or "
+                   "'nx,ny,nz,d' (the plane n.p = d, n up); adds the contact rows (see --contact)")
+    r.add_argument("--contact", help="foot contacts: 'auto' (from low height and speed; the default with --floor), "
+                   "'none' (only keep feet above the floor), or a JSON file {foot keypoint: [[first, last], ...]} "
+                   "of tracks frames")
+    r.add_argument(
+        "--calibrate", choices=["none", "lengths", "camera", "lengths+camera"],
+        help="unknowns besides the motion: the figure's segment lengths (scale factors, 10 %% prior), the camera's "
+        "focal length (or orthographic scale), or both (default: lengths for --figure human with 3D point "
+        "keyframes, else none; plus camera with --camera auto)",
+    )
+    r.add_argument("--save-figure", metavar="FILE.urdf",
+                   help="write the (calibrated) figure's URDF there and its keypoint map next to it "
+                   "(FILE.keypoints.json), for reuse with --figure FILE.urdf --keypoints FILE.keypoints.json")
     r.add_argument("--out", required=True, help="result NPZ")
     r.add_argument("--quiet", action="store_true", help="no progress output")
     r.set_defaults(func=cmd_reconstruct)
@@ -201,17 +398,49 @@ def build_parser() -> argparse.ArgumentParser:
     pl.add_argument("--truth-skip-frames", type=int, default=0, help="frames to drop at the truth's start (1 for CMU)")
     pl.add_argument("--tracks", help="the 2D tracks, to draw the reprojection over them")
     pl.add_argument("--no-animation", action="store_true", help="skip the GIF")
+    pl.add_argument("--fps", type=float, help="frame rate of --tracks that carry none (OpenPose folder, COCO JSON)")
     pl.set_defaults(func=cmd_plot)
 
     e = sub.add_parser("export", help="export a result NPZ as BVH and/or CSV")
     e.add_argument("result", help="result NPZ")
     e.add_argument("--bvh", help="output BVH file")
     e.add_argument("--csv", help="output CSV file (time, root pose, joint angles in degrees)")
+    e.add_argument("--up", default="y", choices=["y", "z"], help="up axis of the exported world (default y, BVH's)")
+    e.add_argument("--units", default="m", choices=["m", "cm", "mm", "own"],
+                   help="BVH length unit (default m; 'own': the figure's, e.g. CMU units)")
+    e.add_argument("--facing", help="axis the figure faces on the first frame, e.g. --facing=-x (default +z with y up, -y with z up; "
+                   "'' keeps the heading)")
+    e.add_argument("--as-reconstructed", action="store_true",
+                   help="keep the reconstruction's world (default: floor at height zero, root start over the origin)")
+    e.add_argument("--html", help="output HTML file: a self-contained player of the 3D motion (offline)")
     e.set_defaults(func=cmd_export)
+
+    ed = sub.add_parser("edit", help="the workbench in the browser: look, correct with keyframes, re-solve, save")
+    ed.add_argument("--figure", help="'human', a URDF file, or a BVH file (default: the --result's own figure)")
+    ed.add_argument("--keypoints", help="keypoint map JSON (for 'human': coco17 or joints)")
+    ed.add_argument("--length-scale", type=float, default=1.0, help="metres per BVH unit (CMU: 0.056444)")
+    ed.add_argument("--lock", nargs="*", help="BVH joints to weld (zero rotation)")
+    ed.add_argument("--tracks", required=True, help="tracks JSON/NPZ, OpenPose folder or COCO JSON")
+    ed.add_argument("--fps", type=float, help="frame rate of OpenPose/COCO tracks")
+    ed.add_argument("--camera", required=True, help="camera JSON")
+    ed.add_argument("--keyframes", help="keyframes JSON to start from")
+    ed.add_argument("--result", help="result NPZ to start from (default: solve once first)")
+    ed.add_argument("--fps-out", type=float, help="reconstruction rate (integer multiple of the tracks' rate)")
+    ed.add_argument("--sigma-px", type=float, help="2D noise, pixels (default 2)")
+    ed.add_argument("--loss", choices=["l2", "huber", "cauchy"], help="measurement loss (default l2)")
+    ed.add_argument("--out", default="pinrecon-edit", help="folder for saves and exports (default ./pinrecon-edit)")
+    ed.add_argument("--keyframes-out", help="where Save writes the keyframes (default OUT/keyframes.json)")
+    ed.add_argument("--result-out", help="where Save writes the result (default OUT/result.npz)")
+    ed.add_argument("--host", default="127.0.0.1", help="address to serve on (default 127.0.0.1)")
+    ed.add_argument("--port", type=int, default=8080, help="port (default 8080)")
+    ed.add_argument("--no-browser", action="store_true", help="do not open a browser (servers)")
+    ed.set_defaults(func=cmd_edit)
 
     li = sub.add_parser("links", help="discover rigid links and hinges in 2D tracks (planarity)")
     li.add_argument("tracks", help="tracks JSON/NPZ, OpenPose folder or COCO JSON")
     li.add_argument("--fps", type=float, help="frame rate of OpenPose/COCO tracks")
+    _detector_options(li)
+    li.add_argument("--quiet", action="store_true", help="no warnings")
     li.add_argument("--camera", help="orthographic camera JSON, to give lengths in metres")
     li.add_argument("--scale", type=float, help="pixels per metre, to give lengths in metres")
     li.add_argument("--names", nargs="*", help="only these tracked points")
@@ -223,11 +452,16 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv=None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
-    try:
-        return args.func(args)
-    except PinreconError as exc:
-        print(f"pinrecon: error: {exc}", file=sys.stderr)
-        return 2
+    with warnings.catch_warnings():
+        if getattr(args, "quiet", False):
+            warnings.simplefilter("ignore")
+        else:
+            warnings.showwarning = _show_warning
+        try:
+            return args.func(args)
+        except PinreconError as exc:
+            print(f"pinrecon: error: {exc}", file=sys.stderr)
+            return 2
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -29,6 +29,7 @@ import pinocchio as pin
 
 from ._resources import example_robot_data_robots, model_path
 from .errors import InputError, UnknownNameError
+from .kinematics import joint_kinds, keypoint_jacobians_from_world, point_kinematics, support_mask
 
 __all__ = ["Figure", "Keypoint", "load_keypoint_map", "parse_keypoint_entries", "xml_file"]
 
@@ -113,6 +114,22 @@ def _limits_from_urdf_xml(xml: str) -> dict[str, tuple[float, float]]:
             if lo is not None and hi is not None and lo < hi:
                 out[j.name] = (float(lo), float(hi))
     return out
+
+
+def _human_stature_m(figure) -> float:
+    """Standing height of the human URDF as built (scale 1): top of the head to the
+    soles in the neutral pose, Y up, from the head-top and toe points of the bundled
+    ``joints`` keypoint map (1.77 m)."""
+    from .layouts import human_keypoint_map
+
+    kps = {k.name: k for k in load_keypoint_map(human_keypoint_map("joints"))}
+    q = figure.neutral()
+
+    def height(name):
+        k = kps[name]
+        return float(figure.frame_placement(q, k.frame).act(np.asarray(k.offset, float))[1])
+
+    return height("head_top") - min(height("left_toe"), height("right_toe"))
 
 
 class Figure:
@@ -233,20 +250,43 @@ class Figure:
         return cls.from_urdf_string(xml, keypoints, root=root, name=name, source=str(path))
 
     @classmethod
-    def human(cls, keypoints: str = "coco17", *, root: str = "free") -> Figure:
+    def human(cls, keypoints: str = "coco17", *, root: str = "free", height: float | None = None) -> Figure:
         """The human model of example-robot-data (38 joints, nv = 42 with the free flyer).
 
-        ``keypoints`` is ``"coco17"`` (COCO-17 body points; face points are offsets on the
-        head frame documented in ``models/keypoints/human_coco17.json``), ``"joints"``
-        (the model's own joint centres) or a path to a keypoint-map JSON file.
+        ``keypoints``: a bundled map ``models/keypoints/human_<name>.json`` (``coco17``,
+        ``body25``, ``body25b``, ``halpe26``: see :mod:`pinrecon.layouts`; ``joints``: the
+        joint centres) or a keypoint-map JSON file; another name lists the bundled maps.
+        ``height``: the stature in metres (top of the head to the soles, standing), the
+        whole figure scaled uniformly to it; default the model's own (1.77 m).
+        ``meta["generic"] == "human"`` marks it as the generic human (calibrated by
+        default, :func:`pinrecon.reconstruct`).
         """
+        from .layouts import human_keypoint_map
+
         urdf = example_robot_data_robots() / "human_description" / "robots" / "human.urdf"
-        maps = {"coco17": "human_coco17.json", "joints": "human_joints.json"}
-        kp_path = model_path("keypoints", maps[keypoints]) if keypoints in maps else Path(keypoints)
+        kp_path = human_keypoint_map(keypoints)
         try:
-            return cls.from_urdf(urdf, load_keypoint_map(kp_path), root=root, name="human")
+            fig = cls.from_urdf(urdf, load_keypoint_map(kp_path), root=root, name="human")
         except InputError as exc:
             raise exc.located(file=kp_path) from None
+        # anatomical limits (published ranges of motion, docs/limits.md) over the URDF's
+        fig = fig.with_limits(model_path("limits", "human.json"))
+        fig.meta["generic"] = "human"
+        if height is not None:
+            h = float(height) if isinstance(height, (int, float)) and not isinstance(height, bool) else float("nan")
+            if not (0.3 <= h <= 3.0):
+                raise InputError(f"must be a stature in metres between 0.3 and 3, got {height!r}", field="height")
+            from lxml import etree
+
+            s = h / _human_stature_m(fig)
+            root_xml = etree.fromstring(fig.urdf_xml.encode())
+            for origin in root_xml.iter("origin"):
+                if origin.get("xyz") is not None and origin.getparent().tag == "joint":
+                    origin.set("xyz", " ".join(repr(s * float(v)) for v in origin.get("xyz").split()))
+            kps = [Keypoint(k.name, k.frame, tuple(s * float(v) for v in k.offset)) for k in fig.keypoints_def]
+            fig = cls.from_urdf_string(etree.tostring(root_xml, encoding="unicode"), kps, root=root, name="human",
+                                       source=fig.source, limits=fig.limits_dict(), meta={**fig.meta, "height_m": h})
+        return fig
 
     @classmethod
     def from_bvh(cls, path, length_scale: float = 1.0, *, lock: Iterable[str] | str = ()) -> Figure:
@@ -286,6 +326,23 @@ class Figure:
             return self._with_keypoints(keypoints)
         except InputError as exc:
             raise exc.located(file=kp_file) from None
+
+    def with_limits(self, limits: Mapping[str, tuple[float, float]] | str | os.PathLike) -> Figure:
+        """The same figure with the given joint limits (radians) replacing its own; joints
+        not named keep theirs. ``limits`` may be a file (:func:`pinrecon.joint_limits.load_limits`:
+        a limits JSON, or a CMU ASF skeleton for a BVH figure)."""
+        from .joint_limits import load_limits, urdf_with_limits
+
+        if isinstance(limits, (str, os.PathLike)):
+            src = limits
+            limits = load_limits(limits, self.joint_names)
+            unknown = [n for n in limits if n not in self._joint_ids]
+            if unknown:
+                raise UnknownNameError("joint", unknown, self.joint_names, file=src, field="limits")
+        given = {str(k): (float(a), float(b)) for k, (a, b) in dict(limits).items()}
+        xml = urdf_with_limits(self.urdf_xml, given) if self.urdf_xml else None  # saved URDFs keep them
+        return Figure(self.model, self.keypoints_def, name=self.name, urdf_xml=xml, limits={**self.limits_dict(), **given},
+                      source=self.source, floating=self.floating, meta=self.meta)
 
     def _with_keypoints(self, keypoints):
         return Figure(
@@ -350,13 +407,8 @@ class Figure:
         self._kp_p_joint = p_joint
         self._kp_unique_joints, self._kp_joint_slot = np.unique(joint_ids, return_inverse=True)
         self._kp_joint_list = [int(j) for j in self._kp_unique_joints]
-        mask = np.zeros((self.K, self.nv), dtype=bool)
-        for i, j in enumerate(joint_ids):
-            for s in model.supports[int(j)]:
-                if s > 0:
-                    iv, nv = model.idx_vs[s], model.nvs[s]
-                    mask[i, iv : iv + nv] = True
-        self._kp_mask = mask
+        self.keypoint_support = support_mask(model, joint_ids)  # (K, nv): the joints moving each keypoint
+        self._kin_kinds = joint_kinds(model)
 
     def support_mask(self, keypoint_names: Iterable[str], tol: float = 1e-9) -> np.ndarray:
         """(nv,) bool: tangent entries that move at least one of the named keypoints.
@@ -518,58 +570,32 @@ class Figure:
         return q
 
     # ------------------------------------------------------------------ kinematics
-    def _joint_poses(self) -> np.ndarray:
-        """(U, 4, 4) world poses of the keypoints' parent joints (after FK)."""
-        oMi = self.data.oMi
-        return np.array([oMi[j].homogeneous for j in self._kp_joint_list])
-
-    def _points_from_poses(self, M: np.ndarray) -> np.ndarray:
-        """Keypoint positions from parent-joint poses M (..., U, 4, 4) -> (..., K, 3)."""
-        M = M[..., self._kp_joint_slot, :3, :]
-        return np.einsum("...kab,kb->...ka", M[..., :3], self._kp_p_joint) + M[..., 3]
-
     def check_q(self, q, *, field="q"):
         q = np.asarray(q, dtype=float)
         if q.shape[-1] != self.nq:
             raise InputError(f"expected configurations of size nq={self.nq}, got shape {q.shape}", field=field)
         return q
 
+    def world_kinematics(self, Q: np.ndarray, jacobian: bool = True):
+        """Keypoints (T, K, 3) along a trajectory (T, nq) and the WORLD joint Jacobian
+        (T, 6, nv) (``None`` without ``jacobian``): vectorised over frames when the joints
+        allow it (:mod:`pinrecon.kinematics`), else Pinocchio frame by frame."""
+        return point_kinematics(self.model, self.data, self._kin_kinds, Q, self._kp_joint_list,
+                                self._kp_joint_slot, self._kp_p_joint, jacobian)
+
     def keypoints(self, q: np.ndarray) -> np.ndarray:
         """World positions of the keypoints: (K, 3) for q (nq,), (T, K, 3) for (T, nq)."""
         q = self.check_q(q)
-        if q.ndim == 1:
-            pin.forwardKinematics(self.model, self.data, q)
-            return self._points_from_poses(self._joint_poses())
-        M = np.empty((q.shape[0], len(self._kp_joint_list), 4, 4))
-        model, data = self.model, self.data
-        for f in range(q.shape[0]):
-            pin.forwardKinematics(model, data, q[f])
-            M[f] = self._joint_poses()
-        return self._points_from_poses(M)
+        P, _ = self.world_kinematics(q[None] if q.ndim == 1 else q, jacobian=False)
+        return P[0] if q.ndim == 1 else P
 
     def keypoint_jacobians(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Keypoint positions (K, 3) and Jacobians d p_world / d v (K, 3, nv).
-
-        For a trajectory (T, nq) returns (T, K, 3) and (T, K, 3, nv).
-        """
+        """Keypoint positions (K, 3) and Jacobians d p_world / d v (K, 3, nv); for a
+        trajectory (T, nq), (T, K, 3) and (T, K, 3, nv)."""
         q = self.check_q(q)
         single = q.ndim == 1
-        Q = q[None] if single else q
-        T, U = Q.shape[0], len(self._kp_joint_list)
-        J_world = np.empty((T, 6, self.nv))
-        M = np.empty((T, U, 4, 4))
-        model, data = self.model, self.data
-        for f in range(T):
-            J_world[f] = pin.computeJointJacobians(model, data, Q[f]).reshape(6, -1)  # (6,) when nv == 1
-            M[f] = self._joint_poses()
-        p = self._points_from_poses(M)
-        # v_p = v_O + w x p = J_lin v + (J_ang v) x p  ->  J_lin - [p]x J_ang  (WORLD Jacobian)
-        skew = np.zeros((T, self.K, 3, 3))
-        skew[..., 0, 1], skew[..., 0, 2], skew[..., 1, 2] = p[..., 2], -p[..., 1], p[..., 0]
-        skew[..., 1, 0], skew[..., 2, 0], skew[..., 2, 1] = -p[..., 2], p[..., 1], -p[..., 0]
-        J = np.matmul(skew, J_world[:, None, 3:, :])  # (T, K, 3, nv) = -[p]x J_ang
-        J += J_world[:, None, :3, :]
-        J *= self._kp_mask[None, :, None, :]
+        p, J_world = self.world_kinematics(q[None] if single else q)
+        J = keypoint_jacobians_from_world(p, J_world, self.keypoint_support)
         return (p[0], J[0]) if single else (p, J)
 
     def frame_placement(self, q: np.ndarray, frame: str) -> pin.SE3:

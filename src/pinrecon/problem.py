@@ -14,14 +14,21 @@ the pipeline (:mod:`pinrecon.reconstruct`) and the planarity seed import it.
 
 from __future__ import annotations
 
+import math
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, fields
 
 import numpy as np
 
-from .errors import InputError
-from .rows import JointKeyframes, JointLimits, Measurement2D, Points3D, Posture, Smoothing, State, smoothing_sigmas
+from .errors import InputError, UnknownNameError
+from .io.calibration import CalibratedCamera
+from .layouts import shared_point_names
+from .proportions import Proportions
+from .rows import (
+    CameraScale, GlobalPrior, JointKeyframes, JointLimits, Measurement2D, Points3D, Posture, Smoothing, State,
+    smoothing_sigmas,
+)
 from .tracks import Keyframe, Keyframes, Markers, Tracks
 
 __all__ = [
@@ -36,7 +43,43 @@ __all__ = [
     "prior_rows",
     "observable_mask",
     "rest_pose",
+    "resolved_loss",
+    "View",
+    "camera_views",
+    "view_grid",
+    "CALIBRATE_MODES",
+    "check_calibrate",
+    "default_calibrate",
 ]
+
+#: what :func:`make_problem` can calibrate: nothing, the figure's segment lengths, the
+#: cameras' focal length (perspective) or scale (orthographic), or both
+CALIBRATE_MODES = ("none", "lengths", "camera", "lengths+camera")
+
+
+def check_calibrate(calibrate) -> str:
+    """``calibrate`` as one of :data:`CALIBRATE_MODES` (``None`` is ``"none"``); an
+    error listing them otherwise."""
+    mode = "none" if calibrate is None else calibrate
+    if mode not in CALIBRATE_MODES:
+        raise InputError(f"must be one of {', '.join(CALIBRATE_MODES)}, got {calibrate!r}", field="calibrate")
+    return mode
+
+
+def default_calibrate(figure, keyframes=None) -> str:
+    """The default of ``calibrate``: ``"lengths"`` for the generic human
+    (:meth:`Figure.human <pinrecon.figure.Figure.human>` marks it with
+    ``meta["generic"] == "human"``; a figure already calibrated carries
+    ``meta["proportions"]``) when there is 3D information, a point keyframe; ``"none"``
+    otherwise, and for any other figure (a BVH's own skeleton, a robot, a calibrated
+    figure saved for reuse). Why: from one view a segment's length trades off against
+    its depth, and without any 3D point the prior does not hold it against hundreds of
+    frames (measured in ``docs/globals.md``, section 5).
+    """
+    meta = getattr(figure, "meta", None) or {}
+    if meta.get("generic") != "human" or "proportions" in meta:
+        return "none"
+    return "lengths" if any(getattr(k, "points", None) for k in keyframes or ()) else "none"
 
 
 @dataclass(frozen=True)
@@ -45,8 +88,9 @@ class Weights:
     human motion; see ``docs/derivations.md``, section 6).
 
     sigma_px : 2D measurement noise, pixels.
-    loss, loss_scale_px : ``"l2"`` (default), or a robust ``"huber"``/``"cauchy"`` loss
-        for detector tracks with outliers, with its scale in pixels.
+    loss, loss_scale_px : ``"auto"`` (``"cauchy"`` for tracks with confidences, else ``"l2"``),
+        ``"l2"``, ``"huber"`` or ``"cauchy"``; scale in pixels (default ``3 sigma_px``) for a point
+        of confidence 1 (errors are scaled by ``sqrt(c)`` first: ``loss_scale_px / sqrt(c)`` px).
     sigma_limits : joint-limit barrier, radians (small = stiff).
     acc_root_translation, acc_root_rotation, acc_joints : smoothing, standard deviation of
         acceleration in m/s^2 and rad/s^2 (constant-velocity prior; large = weak).
@@ -55,13 +99,16 @@ class Weights:
         is turned into a pose (radians).
     sigma_posture : weak prior of every joint towards the rest pose in every frame
         (radians; ``None`` turns it off), see :mod:`pinrecon.rows.posture`.
+    sigma_proportions : log-normal prior on the figure's segment scale factors when they
+        are calibrated (``calibrate="lengths"``): standard deviation of the log factor
+        around its start (0.1: about 10 %).
     root_group : group on which the root's constant-velocity prior is written,
         ``"R3xSO3"`` (world translation and orientation apart; default) or ``"SE3"``
         (the free flyer's screw motion), see :mod:`pinrecon.rows.smoothing`.
     """
 
     sigma_px: float = 2.0
-    loss: str = "l2"
+    loss: str = "auto"
     loss_scale_px: float | None = None
     sigma_limits: float = 0.01
     acc_root_translation: float = 5.0
@@ -71,18 +118,38 @@ class Weights:
     sigma_init_prior: float = 1.0
     sigma_posture: float | None = 3.0
     root_group: str = "R3xSO3"
+    sigma_proportions: float = 0.1
 
     def __post_init__(self):
         for f in fields(self):
             v = getattr(self, f.name)
             if f.name == "loss":
-                if v not in ("l2", "huber", "cauchy"):
-                    raise InputError(f"must be 'l2', 'huber' or 'cauchy', got {v!r}", field="weights.loss")
+                if v not in ("auto", "l2", "huber", "cauchy"):
+                    raise InputError(f"must be 'auto', 'l2', 'huber' or 'cauchy', got {v!r}", field="weights.loss")
             elif f.name == "root_group":
                 if v not in ("R3xSO3", "SE3"):
                     raise InputError(f"must be 'R3xSO3' or 'SE3', got {v!r}", field="weights.root_group")
             elif v is not None and not (isinstance(v, (int, float)) and np.isfinite(v) and v > 0):
                 raise InputError(f"must be a positive number, got {v!r}", field=f"weights.{f.name}")
+
+
+@dataclass(frozen=True, eq=False)
+class View:
+    """One camera of a problem and what it saw.
+
+    name : the camera's name (from the calibration file, else ``"camera1"``, ...).
+    tracks : its tracks, restricted to the figure's keypoints.
+    camera : its :class:`~pinrecon.cameras.Camera`.
+    measurement : its :class:`~pinrecon.rows.Measurement2D` rows.
+    factor : reconstruction frames per frame of its tracks (tracks frame i is
+        reconstruction frame ``i * factor``).
+    """
+
+    name: str
+    tracks: Tracks
+    camera: object
+    measurement: Measurement2D
+    factor: int = 1
 
 
 class ReconstructionProblem:
@@ -95,6 +162,21 @@ class ReconstructionProblem:
     ``weights``, the ``measurement`` and ``smoothing`` rows, and ``active`` (the tangent
     entries the data constrain; the others are held at their start). Built by hand from
     ``(figure, n_frames, rows)`` these are ``None`` (``active`` all True).
+
+    Several cameras: ``views`` lists one :class:`View` per camera (tracks, camera,
+    measurement rows, factor), in the order they were given; ``tracks``, ``camera``,
+    ``measurement`` and ``factor`` are then the first view's (a start that reads one
+    camera reads the first). ``cameras``, ``measurements`` and ``camera_names`` list them
+    all. A one-camera problem has one view.
+
+    Global unknowns (``make_problem(..., calibrate=...)``, ``docs/globals.md``): ``g0``
+    (n_g,) their start, ``None`` without any; ``global_names`` their names;
+    ``proportions`` the figure's :class:`~pinrecon.proportions.Proportions` (its log
+    factors are ``g[:proportions.n]``) or ``None``; ``calibrate`` the mode. The solver
+    calls ``evaluate(Q, jacobian, g)``; without ``g`` (a solve without ``g0``, e.g. a
+    start's or the feet's stage) the globals are held at ``g0``. :meth:`figure_at`,
+    :meth:`cameras_at` and :meth:`keypoints` give the calibrated figure, the fitted
+    cameras and the calibrated figure's keypoints at a ``g``.
     """
 
     def __init__(
@@ -113,6 +195,11 @@ class ReconstructionProblem:
         smoothing: Smoothing | None = None,
         active: np.ndarray | None = None,
         markers: Markers | None = None,
+        views: Sequence[View] | None = None,
+        proportions: Proportions | None = None,
+        g0: np.ndarray | None = None,
+        global_names: Sequence[str] | None = None,
+        calibrate: str = "none",
     ):
         self.figure = figure
         self.n_frames = int(n_frames)
@@ -130,28 +217,133 @@ class ReconstructionProblem:
         self.smoothing = smoothing
         self.active = np.ones(figure.nv, bool) if active is None else np.asarray(active, bool)
         self.markers = markers
+        if views is None and measurement is not None:
+            views = [View("camera1", tracks, camera, measurement, self.factor)]
+        self.views = list(views or ())
+        self.proportions = proportions
+        self.g0 = None if g0 is None else np.asarray(g0, float).reshape(-1)
+        n_g = 0 if self.g0 is None else len(self.g0)
+        self.global_names = list(global_names) if global_names is not None else [f"g{i}" for i in range(n_g)]
+        self.calibrate = calibrate
+        # what stages found, for the result: {"hypotheses": ..., "faults": ...}, each with to_extras()
+        self.reports: dict = {}
 
-    def state(self, Q, jacobian=True) -> State:
-        return State(self.figure, Q, self.kinematic_frames, jacobian)
+    @property
+    def cameras(self) -> list:
+        """Every view's camera, in order."""
+        return [v.camera for v in self.views]
 
-    def evaluate(self, Q, jacobian=True):
-        st = self.state(Q, jacobian)
+    @property
+    def measurements(self) -> list[Measurement2D]:
+        """Every view's measurement rows, in order."""
+        return [v.measurement for v in self.views]
+
+    @property
+    def camera_names(self) -> list[str]:
+        return [v.name for v in self.views]
+
+    @property
+    def n_globals(self) -> int:
+        """Number of global unknowns (0 without calibration)."""
+        return 0 if self.g0 is None else len(self.g0)
+
+    def _globals(self, g):
+        if g is None:
+            return self.g0
+        g = np.asarray(g, float).reshape(-1)
+        if self.g0 is not None and g.shape != self.g0.shape:
+            raise InputError(f"expected {len(self.g0)} global unknowns, got {g.shape}", field="g")
+        return g
+
+    def state(self, Q, jacobian=True, g=None) -> State:
+        """The :class:`State` at ``Q`` and the globals ``g`` (default ``g0``): with
+        proportions, the keypoints of the figure scaled by ``g[:proportions.n]``."""
+        g = self._globals(g)
+        if g is None:
+            return State(self.figure, Q, self.kinematic_frames, jacobian)
+        return State(self.figure, Q, self.kinematic_frames, jacobian, g=g, proportions=self.proportions)
+
+    def evaluate(self, Q, jacobian=True, g=None):
+        st = self.state(Q, jacobian, g)
         return [row.evaluate(st, jacobian) for row in self.rows]
+
+    def figure_at(self, g=None):
+        """The figure with the log factors ``g[:proportions.n]`` written in (a new
+        :class:`~pinrecon.figure.Figure`); the figure itself without proportions."""
+        g = self._globals(g)
+        if self.proportions is None or g is None:
+            return self.figure
+        return self.proportions.calibrated_figure(g[: self.proportions.n])
+
+    def keypoints(self, Q, g=None) -> np.ndarray:
+        """(T, K, 3) keypoints of the (calibrated) figure along ``Q``."""
+        g = self._globals(g)
+        if self.proportions is None or g is None:
+            return self.figure.keypoints(Q)
+        Q = np.asarray(Q, float)
+        P = self.proportions.keypoints(g[: self.proportions.n], np.atleast_2d(Q))
+        return P[0] if Q.ndim == 1 else P
+
+    def calibration(self, g=None) -> dict:
+        """What the globals ``g`` (default ``g0``) say, as plain data: ``mode``; with
+        proportions ``factors``, ``lengths_m`` and ``generic_lengths_m`` per group
+        (:meth:`~pinrecon.proportions.Proportions.lengths_m`: a group's mean segment
+        length); with camera unknowns ``cameras``: per camera name, the quantity
+        (``focal_px`` or ``scale_px_per_m``), its ``start`` and ``fitted`` values.
+        Empty without globals."""
+        g = self._globals(g)
+        if g is None:
+            return {}
+        out: dict = {"mode": self.calibrate, "globals": dict(zip(self.global_names, map(float, g)))}
+        props = self.proportions
+        if props is not None:
+            theta = g[: props.n]
+            out["factors"] = props.factors(theta)
+            out["lengths_m"] = props.lengths_m(theta)
+            out["generic_lengths_m"] = props.lengths_m()
+        cams = {}
+        for v in self.views:
+            intr = v.measurement.intrinsics if v.measurement is not None else None
+            if intr is not None:
+                what = "scale_px_per_m" if intr.name == "log_scale" else "focal_px"
+                cams[v.name] = {"quantity": what, "start": intr.value(np.zeros_like(g)), "fitted": intr.value(g)}
+        if cams:
+            out["cameras"] = cams
+        return out
+
+    def cameras_at(self, g=None) -> list:
+        """Every view's camera at the globals ``g`` (fitted focal length or scale)."""
+        g = self._globals(g)
+        out = []
+        for v in self.views:
+            intr = v.measurement.intrinsics if v.measurement is not None else None
+            out.append(intr.camera(g) if intr is not None and g is not None else v.camera)
+        return out
 
     def retract(self, Q, dQ):
         return self.figure.integrate(Q, dQ)
 
-    def with_rows(self, extra: Sequence, *, after: int = 3) -> ReconstructionProblem:
+    def with_rows(self, extra: Sequence, *, after: int | None = None) -> ReconstructionProblem:
         """The same problem with ``extra`` rows inserted after the first ``after`` rows
-        (by default after measurement, limits and smoothing)."""
+        (by default after the measurement rows of every view, limits and smoothing)."""
+        if after is None:
+            after = max(len(self.views), 1) + 2
         new = ReconstructionProblem.__new__(ReconstructionProblem)
         new.__dict__.update(self.__dict__)
         ReconstructionProblem.__init__(
             new, self.figure, self.n_frames, self.rows[:after] + list(extra) + self.rows[after:],
             fps=self.fps, factor=self.factor, tracks=self.tracks, camera=self.camera, keyframes=self.keyframes,
             weights=self.weights, measurement=self.measurement, smoothing=self.smoothing, active=self.active,
-            markers=self.markers,
+            markers=self.markers, views=self.views, proportions=self.proportions, g0=self.g0,
+            global_names=self.global_names, calibrate=self.calibrate,
         )
+        new.reports = self.reports
+        return new
+
+    def with_globals(self, g) -> ReconstructionProblem:
+        """The same problem started (and, in solves without ``g0``, held) at the globals ``g``."""
+        new = self.with_rows([], after=len(self.rows))
+        new.g0 = None if g is None else self._globals(g).copy()
         return new
 
 
@@ -175,17 +367,10 @@ def upsample_factor(fps_obs: float, fps_out: float | None) -> int:
 
 
 def shared_keypoints(figure, names, source, what="tracks", warn=True) -> list[str]:
-    """The names the figure has, in the given order; an error when there are none, and
-    a warning naming the ignored ones."""
-    shared = [n for n in names if n in figure.keypoint_names]
-    if not shared:
-        raise InputError(
-            f"the {what} and the figure share no keypoint name. {what} names: {list(names)[:40]}; "
-            f"figure keypoints: {figure.keypoint_names[:60]}",
-            file=source,
-            field="names",
-        )
-    ignored = [n for n in names if n not in figure.keypoint_names]
+    """The names the figure has, in the given order. Typos of figure keypoints, no or
+    fewer than 4 shared points are errors (:func:`pinrecon.layouts.shared_point_names`);
+    the other ignored names (points the figure does not carry) give a warning."""
+    shared, ignored = shared_point_names(names, figure.keypoint_names, what=what, source=source)
     if ignored and warn:
         warnings.warn(f"{what} points not on the figure are ignored: {ignored}", stacklevel=3)
     return shared
@@ -212,9 +397,10 @@ def keyframe_rows(figure, keyframes: Keyframes, factor: int) -> list:
     return rows
 
 
-def measurement_rows(figure, tracks: Tracks, camera, factor: int, weights: Weights) -> Measurement2D:
+def measurement_rows(figure, tracks: Tracks, camera, factor: int, weights: Weights, intrinsics=None) -> Measurement2D:
     """2D measurement rows for ``tracks`` (names already matched to the figure's keypoints)
-    on a time grid ``factor`` times finer than the tracks' (frame i -> frame i * factor)."""
+    on a time grid ``factor`` times finer than the tracks' (frame i -> frame i * factor);
+    ``intrinsics`` a :class:`~pinrecon.rows.CameraScale` when the camera is calibrated."""
     obs_rows = np.where(tracks.observed.any(axis=1))[0]
     return Measurement2D(
         camera,
@@ -223,9 +409,18 @@ def measurement_rows(figure, tracks: Tracks, camera, factor: int, weights: Weigh
         tracks.points[obs_rows],
         tracks.weights()[obs_rows],
         sigma_px=weights.sigma_px,
-        loss=weights.loss,
+        loss=resolved_loss(weights, tracks),
         loss_scale_px=weights.loss_scale_px,
+        intrinsics=intrinsics,
     )
+
+
+def resolved_loss(weights: Weights, tracks: Tracks) -> str:
+    """``weights.loss`` with ``"auto"`` resolved: Cauchy for tracks with confidences
+    (detector output, with outliers), least squares otherwise."""
+    if weights.loss != "auto":
+        return weights.loss
+    return "cauchy" if tracks.confidence is not None else "l2"
 
 
 def prior_rows(figure, n_frames: int, fps: float, weights: Weights) -> tuple[Smoothing, JointLimits]:
@@ -257,10 +452,104 @@ def observable_mask(figure, names, keyframes) -> np.ndarray:
     return active
 
 
+def camera_views(tracks, camera) -> list[tuple[str, Tracks, object]]:
+    """Pair tracks with cameras: ``(name, tracks, camera)`` per camera, in order.
+
+    ``tracks`` and ``camera`` are one :class:`Tracks` and one camera, or two sequences of
+    the same length paired in order. A camera may be a
+    :class:`~pinrecon.io.calibration.CalibratedCamera` (from
+    :func:`~pinrecon.io.calibration.load_cameras`), whose name is kept; other cameras are
+    named ``camera1``, ``camera2``, ...
+    """
+    many = isinstance(tracks, (list, tuple)) or isinstance(camera, (list, tuple))
+    tl = list(tracks) if isinstance(tracks, (list, tuple)) else [tracks]
+    cl = list(camera) if isinstance(camera, (list, tuple)) else [camera]
+    if len(tl) != len(cl):
+        raise InputError(
+            f"{len(tl)} tracks but {len(cl)} cameras: give one camera per tracks, paired in order", field="camera"
+        )
+    if not tl:
+        raise InputError("no tracks given", field="tracks")
+    out, seen = [], set()
+    for i, (trk, cam) in enumerate(zip(tl, cl)):
+        where = f"[{i}]" if many else ""
+        name = f"camera{i + 1}"
+        if isinstance(cam, CalibratedCamera):
+            name, cam = cam.name, cam.camera
+        if not isinstance(trk, Tracks):
+            raise InputError(f"tracks must be a pinrecon.Tracks, got {type(trk).__name__}", field=f"tracks{where}")
+        if not (hasattr(cam, "project") and hasattr(cam, "project_with_jacobian")):
+            raise InputError(
+                f"camera must be a pinrecon camera (Orthographic, Perspective) or a CalibratedCamera, "
+                f"got {type(cam).__name__}",
+                field=f"camera{where}",
+            )
+        if name in seen:
+            name = f"{name}#{i + 1}"
+        seen.add(name)
+        out.append((name, trk, cam))
+    return out
+
+
+def view_grid(tracks: Sequence[Tracks], names: Sequence[str], *, fps_out=None, factor=None) -> tuple[list[int], int, float]:
+    """The reconstruction's time grid for several cameras' tracks: ``(factors, T, fps)``.
+
+    Frame ``i`` of camera ``c``'s tracks is reconstruction frame ``i * factors[c]``: every
+    camera's tracks start at the same instant (the first frame). The grid runs at
+    ``fps_out`` (or ``factor`` times the first camera's rate), by default the highest
+    camera rate, which every camera's rate must divide. The cameras must end together:
+    each one's last frame within one of its own frame periods of the grid's end (with one
+    rate: the same number of frames). Anything else is one clear error.
+    """
+    tracks = list(tracks)
+    for t, name in zip(tracks, names):
+        if t.T < 1:
+            who = "tracks" if len(tracks) == 1 else f"tracks of camera {name!r}"
+            raise InputError(f"{who} have no frames", file=t.source, field="points")
+    if len(tracks) == 1:
+        t = tracks[0]
+        f = upsample_factor(t.fps, fps_out) if factor is None else int(factor)
+        return [f], (t.T - 1) * f + 1, t.fps * f
+    if factor is not None:
+        fps = tracks[0].fps * int(factor)
+    else:
+        fps = float(fps_out) if fps_out is not None else max(t.fps for t in tracks)
+    factors = []
+    for t, name in zip(tracks, names):
+        ratio = fps / t.fps
+        f = round(ratio)
+        if f < 1 or abs(ratio - f) > 1e-6 * ratio:
+            rates = ", ".join(f"{n!r} {u.fps:g} fps" for n, u in zip(names, tracks))
+            hint = ""
+            if all(float(u.fps).is_integer() for u in tracks):
+                hint = f" (e.g. fps_out={math.lcm(*[int(u.fps) for u in tracks])})"
+            raise InputError(
+                f"the cameras run at different rates ({rates}) and {t.fps:g} fps does not divide the "
+                f"reconstruction's {fps:g} fps: pass fps_out, a common multiple of every camera's rate{hint}",
+                file=t.source,
+                field="fps_out" if fps_out is not None else "fps",
+            )
+        factors.append(f)
+    spans = [(t.T - 1) * f for t, f in zip(tracks, factors)]
+    T = max(spans) + 1
+    for t, f, span, name in zip(tracks, factors, spans, names):
+        if (T - 1) - span >= f:
+            longest = int(np.argmax(spans))
+            raise InputError(
+                f"camera {name!r} has {t.T} frames at {t.fps:g} fps ({(t.T - 1) / t.fps:.3f} s) but camera "
+                f"{names[longest]!r} has {tracks[longest].T} frames at {tracks[longest].fps:g} fps "
+                f"({(tracks[longest].T - 1) / tracks[longest].fps:.3f} s): the cameras' tracks must start at the "
+                f"same instant and end together; cut them to the same span with Tracks.frames(start, stop)",
+                file=t.source,
+                field="points",
+            )
+    return factors, T, fps
+
+
 # ----------------------------------------------------------------------------- builders
 def make_problem(
     figure,
-    tracks: Tracks,
+    tracks: Tracks | Sequence[Tracks],
     camera,
     keyframes: Keyframes | Sequence[Keyframe] | None = None,
     *,
@@ -268,42 +557,90 @@ def make_problem(
     factor: int | None = None,
     weights: Weights | None = None,
     keypoints: Sequence[str] | None = None,
+    calibrate: str | None = "none",
+    proportions: Proportions | None = None,
+    log_factors0=None,
+    sigma_proportions: float | None = None,
+    sigma_camera: float | None = None,
 ) -> ReconstructionProblem:
     """Validate the inputs and build the rows of :func:`pinrecon.reconstruct`'s problem.
 
     ``fps_out`` (or directly ``factor = fps_out / tracks.fps``) sets the time grid;
     ``keypoints`` restricts the track names used (default: every name the figure has;
-    the others are ignored with a warning). Keyframes' frames index the tracks.
+    the others are ignored with a warning). Keyframes' frames index the tracks (the
+    first camera's).
+
+    Several cameras: ``tracks`` and ``camera`` are sequences of the same length, paired
+    in order (:func:`camera_views`); each camera's tracks, with their own missing points
+    and confidences, become measurement rows through that camera, all in the one problem
+    (one :class:`View` each, ``problem.views``). Their time grids must agree
+    (:func:`view_grid`).
+
+    Calibration (``docs/globals.md``): ``calibrate`` is one of :data:`CALIBRATE_MODES`.
+    ``"lengths"`` makes the figure's segment scale factors global unknowns
+    (``proportions``, default :meth:`Proportions.default
+    <pinrecon.proportions.Proportions.default>`: the human's named groups, else one per
+    bone with left/right twins), log-parametrised, started at ``log_factors0`` (default
+    0: the figure as given) with a log-normal prior of ``sigma_proportions`` (default
+    ``weights.sigma_proportions``, 0.1) around the start; ``"camera"`` makes every camera's log focal length (perspective) or log scale
+    (orthographic) a global (one per camera, no prior unless ``sigma_camera``);
+    ``"lengths+camera"`` both. The globals are ``g = (log factors, log camera scales)``;
+    ``problem.g0`` is their start.
     """
     weights = weights or Weights()
-    if not isinstance(tracks, Tracks):
-        raise InputError(f"tracks must be a pinrecon.Tracks, got {type(tracks).__name__}", field="tracks")
+    mode = check_calibrate(calibrate)
+    pairs = camera_views(tracks, camera)
+    props = None
+    if "lengths" in mode:
+        props = Proportions.default(figure) if proportions is None else proportions
+        if props.figure is not figure:
+            raise InputError("the proportions were built for another figure", field="proportions")
+    n_p = props.n if props is not None else 0
+    theta0 = np.zeros(n_p) if log_factors0 is None or props is None else props.check(log_factors0)
     if keyframes is not None and not isinstance(keyframes, Keyframes):
         keyframes = Keyframes(list(keyframes))
-    factor = upsample_factor(tracks.fps, fps_out) if factor is None else int(factor)
-    T_obs = tracks.T
-    if T_obs < 1:
-        raise InputError("tracks have no frames", file=tracks.source, field="points")
-    T = (T_obs - 1) * factor + 1
-    fps = tracks.fps * factor
-    names = list(keypoints) if keypoints is not None else list(tracks.names)
-    sub = tracks.select(names)
-    shared = shared_keypoints(figure, sub.names, tracks.source)
-    sub = sub.select(shared)
+    factors, T, fps = view_grid([t for _, t, _ in pairs], [n for n, _, _ in pairs], fps_out=fps_out, factor=factor)
+    if keypoints is not None and len(pairs) > 1:
+        known = {n for _, t, _ in pairs for n in t.names}
+        unknown = [n for n in keypoints if n not in known]
+        if unknown:
+            raise UnknownNameError("track", unknown, sorted(known), field="keypoints")
+    views, used = [], []
+    for (name, trk, cam), f in zip(pairs, factors):
+        names = list(trk.names) if keypoints is None else [n for n in keypoints if len(pairs) == 1 or n in trk.names]
+        sub = trk.select(names)
+        shared = shared_keypoints(figure, sub.names, trk.source)
+        sub = sub.select(shared)
+        used += [n for n in shared if n not in used]
+        intr = CameraScale(cam, n_p + len(views)) if "camera" in mode else None
+        views.append(View(name, sub, cam, measurement_rows(figure, sub, cam, f, weights, intr), f))
     if keyframes is not None:
-        keyframes.validate(figure, T_obs)
+        keyframes.validate(figure, pairs[0][1].T)
 
-    meas = measurement_rows(figure, sub, camera, factor, weights)
     smoothing, limits = prior_rows(figure, T, fps, weights)
-    active = observable_mask(figure, shared, keyframes)
-    rows = [meas, limits, smoothing]
+    active = observable_mask(figure, used, keyframes)
+    rows = [v.measurement for v in views] + [limits, smoothing]
     if weights.sigma_posture is not None:
         rows.append(Posture(figure, T, rest_pose(figure), weights.sigma_posture, active))
     if keyframes is not None and len(keyframes):
-        rows += keyframe_rows(figure, keyframes, factor)
+        rows += keyframe_rows(figure, keyframes, factors[0])
+    g0, names = None, []
+    if props is not None:
+        sig = weights.sigma_proportions if sigma_proportions is None else sigma_proportions
+        rows.append(GlobalPrior(np.arange(n_p), theta0, sig, name="prior_proportions"))
+        names += list(props.names)
+    if "camera" in mode:
+        cols = n_p + np.arange(len(views))
+        if sigma_camera is not None:
+            rows.append(GlobalPrior(cols, 0.0, sigma_camera, name="prior_camera"))
+        names += [f"{v.name}.{v.measurement.intrinsics.name}" for v in views]
+    if names:
+        g0 = np.r_[theta0, np.zeros(len(names) - n_p)]
+    first = views[0]
     return ReconstructionProblem(
-        figure, T, rows, fps=fps, factor=factor, tracks=sub, camera=camera, keyframes=keyframes,
-        weights=weights, measurement=meas, smoothing=smoothing, active=active,
+        figure, T, rows, fps=fps, factor=first.factor, tracks=first.tracks, camera=first.camera, keyframes=keyframes,
+        weights=weights, measurement=first.measurement, smoothing=smoothing, active=active, views=views,
+        proportions=props, g0=g0, global_names=names, calibrate=mode,
     )
 
 

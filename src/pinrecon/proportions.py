@@ -39,6 +39,7 @@ import pinocchio as pin
 
 from .errors import InputError, UnknownNameError
 from .figure import Figure, Keypoint
+from .kinematics import joint_kinds, joint_kinematics, keypoint_jacobians_from_world, point_kinematics
 
 __all__ = ["Segment", "Proportions", "mirror_name", "HUMAN_GROUPS", "KEYPOINT_SEGMENT_SUFFIX"]
 
@@ -236,7 +237,7 @@ class Proportions:
                 if s > 0:
                     mask[k, model.idx_vs[s] : model.idx_vs[s] + model.nvs[s]] = True
         self._kp_mask = mask
-        self._kinds = _joint_kinds(model)
+        self._kinds = joint_kinds(model)
         self._cache_key: bytes | None = None
         self._cache: _Scaled | None = None
 
@@ -353,24 +354,11 @@ class Proportions:
         return pin.Model(self._scaled(self.check(log_factors)).model)
 
     def _poses(self, sc: _Scaled, Q: np.ndarray, jacobian: bool):
-        """World poses (T, U, 4, 4) of the joints ``self._joints`` and the WORLD joint
-        Jacobian (T, 6, nv): vectorised over frames when every joint is a free flyer, a
-        revolute or a prismatic joint (:func:`_batch_kinematics`), else frame by frame."""
-        if self._kinds is not None:
-            return _batch_kinematics(sc.model, self._kinds, Q, self._joints, jacobian)
-        T = Q.shape[0]
-        M = np.empty((T, len(self._joints), 4, 4))
-        Jw = np.empty((T, 6, self._model.nv)) if jacobian else None
-        joints = [int(j) for j in self._joints]
-        model, data = sc.model, sc.data
-        for t in range(T):
-            if jacobian:
-                Jw[t] = pin.computeJointJacobians(model, data, Q[t]).reshape(6, -1)
-            else:
-                pin.forwardKinematics(model, data, Q[t])
-            oMi = data.oMi.tolist()
-            M[t] = [oMi[j].homogeneous for j in joints]
-        return M, Jw
+        """World rotations (T, U, 3, 3) and origins (T, U, 3) of the joints ``self._joints``
+        and the WORLD joint Jacobian (T, 6, nv) of the scaled model
+        (:func:`pinrecon.kinematics.joint_kinematics`: vectorised over frames when every
+        joint is a free flyer, a revolute or a prismatic joint, else frame by frame)."""
+        return joint_kinematics(sc.model, sc.data, self._kinds, Q, self._joints, jacobian)
 
     def _check_q(self, Q):
         Q = np.asarray(Q, float)
@@ -381,36 +369,37 @@ class Proportions:
     def keypoints(self, log_factors, Q) -> np.ndarray:
         """(T, K, 3) keypoints of the scaled figure along the trajectory Q (T, nq)."""
         sc = self._scaled(self.check(log_factors))
-        M, _ = self._poses(sc, self._check_q(Q), False)
-        Mk = M[:, self._kp_slot]
-        return np.einsum("tkab,kb->tka", Mk[..., :3, :3], sc.kp_p_joint) + Mk[..., :3, 3]
+        P, _ = point_kinematics(sc.model, sc.data, self._kinds, self._check_q(Q), self._joints, self._kp_slot,
+                                sc.kp_p_joint, False)  # formed in chunks of frames
+        return P
 
-    def kinematics(self, log_factors, Q):
-        """Keypoints (T, K, 3), d p / d v (T, K, 3, nv) and d p / d theta (T, K, 3, n) of
-        the scaled figure along Q (T, nq)."""
+    def world_kinematics(self, log_factors, Q):
+        """Keypoints (T, K, 3), the WORLD joint Jacobian (T, 6, nv) and d p / d theta
+        (T, K, 3, n) of the scaled figure along Q (T, nq); the keypoint Jacobians are
+        :func:`pinrecon.kinematics.keypoint_jacobians_from_world` of the first two with the
+        figure's ``keypoint_support`` (scaling changes no joint's support)."""
         sc = self._scaled(self.check(log_factors))
         Q = self._check_q(Q)
-        M, Jw = self._poses(sc, Q, True)
+        R, pj, Jw = self._poses(sc, Q, True)
         T, K = Q.shape[0], len(self._kp_joint)
-        Mk = M[:, self._kp_slot]
-        Rk = Mk[..., :3, :3]
-        p = np.einsum("tkab,kb->tka", Rk, sc.kp_p_joint) + Mk[..., :3, 3]
-        skew = np.zeros((T, K, 3, 3))
-        skew[..., 0, 1], skew[..., 0, 2], skew[..., 1, 2] = p[..., 2], -p[..., 1], p[..., 0]
-        skew[..., 1, 0], skew[..., 2, 0], skew[..., 2, 1] = -p[..., 2], p[..., 1], -p[..., 0]
-        J = np.matmul(skew, Jw[:, None, 3:, :])
-        J += Jw[:, None, :3, :]
-        J *= self._kp_mask[None, :, None, :]
+        Rk = R[:, self._kp_slot]
+        p = np.einsum("tkab,kb->tka", Rk, sc.kp_p_joint) + pj[:, self._kp_slot]
         dp = np.zeros((T, 3, K * self.n))
         if len(self._bone):
-            V = np.einsum("tbxy,by->tbx", M[:, self._anchor_slot, :3, :3], sc.anchor_w)  # (T, B, 3)
+            V = np.einsum("tbxy,by->tbx", R[:, self._anchor_slot], sc.anchor_w)  # (T, B, 3)
             dp = np.matmul(V.transpose(0, 2, 1), self._C)  # (T, 3, K n)
         dp = dp.reshape(T, 3, K, self.n).transpose(0, 2, 1, 3).copy()
         ends = np.where(self._kp_end_group >= 0)[0]
         if len(ends):
             d_end = np.einsum("tkxy,ky->tkx", Rk[:, ends], sc.end_w[ends])  # (T, E, 3)
             dp[:, ends, :, self._kp_end_group[ends]] += d_end.transpose(1, 0, 2)
-        return p, J, dp
+        return p, Jw, dp
+
+    def kinematics(self, log_factors, Q):
+        """Keypoints (T, K, 3), d p / d v (T, K, 3, nv) and d p / d theta (T, K, 3, n) of
+        the scaled figure along Q (T, nq)."""
+        p, Jw, dp = self.world_kinematics(log_factors, Q)
+        return p, keypoint_jacobians_from_world(p, Jw, self._kp_mask), dp
 
     # ------------------------------------------------------------------ the calibrated figure
     def calibrated_figure(self, log_factors, *, name: str | None = None) -> Figure:
@@ -503,95 +492,6 @@ def _bone_groups(segment_names: Sequence[str], symmetric: bool) -> dict[str, lis
         else:
             groups[name] = [name]
     return groups
-
-
-_AXES = {"X": (1.0, 0.0, 0.0), "Y": (0.0, 1.0, 0.0), "Z": (0.0, 0.0, 1.0)}
-
-
-def _joint_kinds(model) -> list | None:
-    """Per joint ``(kind, axis)`` with kind ``"free"``, ``"rev"`` or ``"pri"``, or ``None``
-    when some joint is of another type (then kinematics go through Pinocchio per frame)."""
-    kinds: list = [None]
-    for j in range(1, model.njoints):
-        name = model.joints[j].shortname()
-        if name == "JointModelFreeFlyer":
-            kinds.append(("free", None))
-        elif name in ("JointModelRX", "JointModelRY", "JointModelRZ"):
-            kinds.append(("rev", np.array(_AXES[name[-1]])))
-        elif name in ("JointModelPX", "JointModelPY", "JointModelPZ"):
-            kinds.append(("pri", np.array(_AXES[name[-1]])))
-        elif name in ("JointModelRevoluteUnaligned", "JointModelPrismaticUnaligned"):
-            axis = np.array(model.joints[j].extract().axis, float)
-            kinds.append(("rev" if "Revolute" in name else "pri", axis / np.linalg.norm(axis)))
-        else:
-            return None
-    return kinds
-
-
-def _batch_kinematics(model, kinds, Q, joints, jacobian):
-    """Forward kinematics of every frame at once (NumPy over frames, one step per joint):
-    ``oMi[j] = oMi[parent] * jointPlacement[j] * motion_j(q_j)``, and the WORLD joint
-    Jacobian (Pinocchio's convention: the linear part is the velocity of the point at the
-    world origin, ``o x w`` for a rotation ``w`` about an axis through ``o``).
-
-    Returns poses (T, len(joints), 4, 4) of ``joints`` and the Jacobian (T, 6, nv) or None.
-    """
-    T = Q.shape[0]
-    nj = model.njoints
-    R = np.empty((nj, T, 3, 3))
-    p = np.empty((nj, T, 3))
-    R[0], p[0] = np.eye(3), 0.0
-    Jw = np.zeros((T, 6, model.nv)) if jacobian else None
-
-    def times(Rs, C):  # Rs (T, 3, 3) @ C (3, 3) or (3,), as one GEMM
-        return (Rs.reshape(-1, 3) @ C).reshape((T, 3, 3) if C.ndim == 2 else (T, 3))
-
-    for j in range(1, nj):
-        par = model.parents[j]
-        M = model.jointPlacements[j]
-        p_par = p[par] + times(R[par], M.translation)
-        kind, axis = kinds[j]
-        iq, iv = model.idx_qs[j], model.idx_vs[j]
-        if kind == "free":
-            x, y, z, w = Q[:, iq + 3], Q[:, iq + 4], Q[:, iq + 5], Q[:, iq + 6]
-            Rq = np.stack([
-                np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], -1),
-                np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], -1),
-                np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], -1),
-            ], -2)
-            R_par = times(R[par], M.rotation)
-            R[j] = R_par @ Rq
-            p[j] = p_par + np.einsum("tab,tb->ta", R_par, Q[:, iq : iq + 3])
-            if jacobian:
-                Jw[:, 0:3, iv : iv + 3] = R[j]  # local linear velocity -> world
-                Jw[:, 3:6, iv + 3 : iv + 6] = R[j]  # local angular velocity -> world
-                Jw[:, 0:3, iv + 3 : iv + 6] = np.cross(p[j][:, :, None], R[j], axis=1)
-        elif kind == "rev":
-            # R_par Rot(axis, q) = R_par (I + sin q K + (1 - cos q) K^2), R_par = R[par] M.R
-            K = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
-            th = Q[:, iq, None, None]
-            Mr = M.rotation
-            R[j] = times(R[par], Mr) + np.sin(th) * times(R[par], Mr @ K) + (1.0 - np.cos(th)) * times(R[par], Mr @ K @ K)
-            p[j] = p_par
-            if jacobian:
-                w = times(R[par], Mr @ axis)
-                o = p_par
-                Jw[:, 3:6, iv] = w
-                Jw[:, 0, iv] = o[:, 1] * w[:, 2] - o[:, 2] * w[:, 1]
-                Jw[:, 1, iv] = o[:, 2] * w[:, 0] - o[:, 0] * w[:, 2]
-                Jw[:, 2, iv] = o[:, 0] * w[:, 1] - o[:, 1] * w[:, 0]
-        else:  # prismatic
-            R[j] = times(R[par], M.rotation)
-            d_world = times(R[par], M.rotation @ axis)
-            p[j] = p_par + d_world * Q[:, iq, None]
-            if jacobian:
-                Jw[:, 0:3, iv] = d_world
-    sel = np.asarray(joints, dtype=int)
-    out = np.zeros((T, len(sel), 4, 4))
-    out[..., :3, :3] = R[sel].transpose(1, 0, 2, 3)
-    out[..., :3, 3] = p[sel].transpose(1, 0, 2)
-    out[..., 3, 3] = 1.0
-    return out, Jw
 
 
 def scale_urdf_origins(urdf_xml: str, joint_factors: Mapping[str, float]) -> str:

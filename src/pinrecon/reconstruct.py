@@ -16,19 +16,22 @@ smoothing and gap filling of motion capture).
 
 from __future__ import annotations
 
-import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
+from .contact import solve_on_the_floor
+from .faults import fault_stage
 from .errors import InputError
-from .problem import ReconstructionProblem, Weights, make_marker_problem, make_problem
+from .problem import ReconstructionProblem, Weights, default_calibrate, make_marker_problem, make_problem
 from .result import Result, load_result
 from .rows import Measurement2D
 from .solver import SolveResult, SolverOptions, solve
 from .starts import available_starts, get_start, initial_trajectory
+from .starts.camera_auto import AutoCamera, auto_camera, camera_scale_from_keyframes, image_size_of
 from .tracks import Keyframe, Keyframes, Markers, Tracks
+from .windowed import solve_windowed, windowed_length
 
 __all__ = [
     "reconstruct",
@@ -54,6 +57,7 @@ class Setup:
     measurement: Measurement2D
     fps: float
     camera: object
+    g0: np.ndarray | None = None
 
 
 def _start_name(init, seed):
@@ -75,9 +79,51 @@ def _start_name(init, seed):
     return init
 
 
+def _camera_and_mode(figure, tracks, camera, keyframes, calibrate, image_size=None):
+    """The camera(s) to build the problem with and the calibration mode.
+
+    ``camera="auto"`` (or an :class:`~pinrecon.starts.camera_auto.AutoCamera`): the
+    auto camera (:func:`~pinrecon.starts.camera_auto.auto_camera`), its focal length (or
+    scale) calibrated unless ``calibrate`` says otherwise. A given camera whose scale is
+    calibrated starts from the point keyframes' least-squares value
+    (:func:`~pinrecon.starts.camera_auto.camera_scale_from_keyframes`). Returns
+    ``(camera, mode, auto)`` with ``auto`` a description of the auto camera or ``None``.
+    """
+    mode = default_calibrate(figure, keyframes) if calibrate is None else calibrate
+    auto = AutoCamera.parse(camera, image_size=image_size) if isinstance(camera, (str, AutoCamera)) else None
+    if isinstance(camera, str) and auto is None:
+        raise InputError(f"a camera, a list of cameras or 'auto', got {camera!r}", field="camera")
+    if auto is not None:
+        if isinstance(tracks, (list, tuple)):
+            raise InputError("the auto camera is for one camera's tracks; give every camera of several", field="camera")
+        if auto.image_size is None and image_size is not None:
+            auto = AutoCamera(image_size, auto.projection, auto.fov_deg)
+        camera = auto_camera(tracks, figure, auto.image_size, auto.projection, fov_deg=auto.fov_deg,
+                             keyframes=keyframes)
+        if calibrate is None:
+            mode = "lengths+camera" if mode == "lengths" else "camera"
+        posed = any(getattr(k, "points", None) for k in keyframes or ())
+        desc = {"projection": auto.projection, "image_size": list(image_size_of(tracks, auto.image_size)),
+                "start": camera.to_dict(),
+                "pose": "from the point keyframes" if posed else "gauge: the world is the camera's (optical centre "
+                "at the origin, looking along +Z, +Y up)"}
+        if auto.projection == "perspective":
+            desc["fov_deg"] = float(auto.fov_deg)
+        return camera, mode, desc
+    if "camera" in str(mode) and keyframes is not None:
+        if isinstance(camera, (list, tuple)):
+            trk = tracks if isinstance(tracks, (list, tuple)) else [tracks]
+            same = all(t.fps == trk[0].fps and t.T == trk[0].T for t in trk)
+            camera = [camera_scale_from_keyframes(c, t, keyframes) if same or i == 0 else c
+                      for i, (c, t) in enumerate(zip(camera, trk))]
+        else:
+            camera = camera_scale_from_keyframes(camera, tracks, keyframes)
+    return camera, mode, None
+
+
 def build_problem(
     figure,
-    tracks: Tracks,
+    tracks: Tracks | Sequence[Tracks],
     camera,
     keyframes: Keyframes | Sequence[Keyframe] | None = None,
     *,
@@ -86,16 +132,21 @@ def build_problem(
     init: np.ndarray | str | None = None,
     seed: str | None = None,
     keypoints: Sequence[str] | None = None,
+    calibrate: str | None = None,
+    image_size=None,
 ) -> Setup:
-    """The problem and its start, unsolved; see :func:`reconstruct`."""
-    problem = make_problem(figure, tracks, camera, keyframes, fps_out=fps_out, weights=weights, keypoints=keypoints)
+    """The problem and its start, unsolved; see :func:`reconstruct` (solve it with
+    ``solve(setup.problem, setup.q0, active=setup.active, g0=setup.g0)``)."""
+    camera, mode, _ = _camera_and_mode(figure, tracks, camera, keyframes, calibrate, image_size)
+    problem = make_problem(figure, tracks, camera, keyframes, fps_out=fps_out, weights=weights, keypoints=keypoints,
+                           calibrate=mode)
     q0 = initial_trajectory(problem, _start_name(init, seed))
-    return Setup(problem, q0, problem.active, problem.measurement, problem.fps, camera)
+    return Setup(problem, q0, problem.active, problem.measurement, problem.fps, problem.camera, problem.g0)
 
 
 def reconstruct(
     figure,
-    tracks: Tracks,
+    tracks: Tracks | Sequence[Tracks],
     camera,
     keyframes: Keyframes | Sequence[Keyframe] | None = None,
     *,
@@ -106,14 +157,33 @@ def reconstruct(
     options: SolverOptions | None = None,
     callback: Callable | None = None,
     keypoints: Sequence[str] | None = None,
+    floor=None,
+    contact=None,
+    contact_settings=None,
+    calibrate: str | None = None,
+    image_size=None,
+    window: int | None = None,
 ) -> Result:
-    """Reconstruct the figure's motion from 2D tracks seen by ``camera``.
+    """Reconstruct the figure's motion from 2D tracks seen by ``camera`` (or cameras).
 
     Parameters
     ----------
     figure : :class:`pinrecon.Figure`.
-    tracks : :class:`pinrecon.Tracks`; names are matched to the figure's keypoints.
-    camera : :class:`~pinrecon.cameras.Orthographic` or :class:`~pinrecon.cameras.Perspective`.
+    tracks : :class:`pinrecon.Tracks`; names are matched to the figure's keypoints. Or a
+        list of them, one per camera.
+    camera : :class:`~pinrecon.cameras.Orthographic` or :class:`~pinrecon.cameras.Perspective`;
+        ``"auto"`` (or ``"auto:orthographic"``, or an
+        :class:`~pinrecon.starts.camera_auto.AutoCamera`) for tracks without a calibration:
+        a camera estimated from the tracks and the figure (principal point at the image
+        centre of ``image_size`` (W, H), focal length from a 60 degree field of view),
+        its focal length (or scale) then calibrated, see
+        :mod:`pinrecon.starts.camera_auto`;
+        or a list of cameras of the same length as ``tracks``, paired in order (e.g.
+        :func:`pinrecon.io.calibration.load_cameras` of a Pose2Sim TOML, whose names are
+        kept). Every camera's tracks, with their own missing points and confidences, are
+        measurement rows through that camera in the one batch solve; the tracks must
+        start at the same instant and end together (rates may differ when the
+        reconstruction rate is a multiple of each; see :func:`pinrecon.problem.view_grid`).
     keyframes : optional :class:`~pinrecon.tracks.Keyframes` (frames index the tracks).
     fps_out : reconstruction rate, an integer multiple of ``tracks.fps`` (super-sampled
         frames have no observation); default ``tracks.fps``.
@@ -127,15 +197,59 @@ def reconstruct(
     options : :class:`~pinrecon.solver.SolverOptions`.
     callback : called with each :class:`~pinrecon.solver.IterationReport`; return True to stop.
     keypoints : track names to use (default: every track name the figure has).
+    floor, contact, contact_settings : feet on the ground (:mod:`pinrecon.contact`), off by
+        default. ``floor``: ``"auto"`` (estimated under the lowest foot points), a
+        :class:`~pinrecon.contact.Floor` or a spec (``"y=0"``, ``"nx,ny,nz,d"``).
+        ``contact``: ``"auto"`` (detected from low height and speed), a (T_tracks, F)
+        bool array or a mapping per foot keypoint (:func:`pinrecon.contact.contacts_from_spec`),
+        or ``False`` (floor only). Either one turns the stage on (the other then defaults
+        to ``"auto"``): after the solve, the contact rows (zero velocity and height of
+        planted foot points, non-penetration of every foot point) are added and the problem
+        is solved again warm, floor and contacts refined between solves
+        (:func:`pinrecon.contact.solve_on_the_floor`; ``contact_settings`` a
+        :class:`~pinrecon.contact.ContactSettings`). The result's ``extras`` then hold the
+        floor and contacts and its summary the foot metrics.
+    calibrate : ``"none"``, ``"lengths"`` (the figure's segment lengths), ``"camera"``
+        (every camera's focal length, or scale for an orthographic camera) or
+        ``"lengths+camera"``: unknowns of the same batch solve, see
+        :func:`pinrecon.problem.make_problem` and ``docs/globals.md``. Default
+        (``None``): ``"lengths"`` for the generic ``Figure.human()`` with 3D point
+        keyframes, ``"none"`` without them and for any other figure
+        (:func:`pinrecon.problem.default_calibrate`); with the auto camera, plus
+        ``"camera"``.
+    image_size : (W, H) pixels, for ``camera="auto"`` when the tracks carry no image size.
+    window : solve in overlapping windows of this many frames, in bounded memory
+        (:mod:`pinrecon.windowed`); default: windows of 2000 frames past 10000 frames
+        (without ``floor``/``contact``), ``0``: one batch solve whatever the length.
 
     Returns
     -------
-    :class:`~pinrecon.result.Result`
+    :class:`~pinrecon.result.Result`, with every camera (``cameras``, ``camera_names``) and
+    each camera's reprojection error (``reprojection_error_px_per_camera``). Calibrated,
+    ``result.figure`` is the calibrated figure (its keypoints are ``keypoints3d``),
+    ``result.cameras`` the fitted cameras and ``result.calibration`` the factors, the
+    fitted lengths and focal lengths.
     """
-    problem = make_problem(figure, tracks, camera, keyframes, fps_out=fps_out, weights=weights, keypoints=keypoints)
+    camera, mode, auto = _camera_and_mode(figure, tracks, camera, keyframes, calibrate, image_size)
+    problem = make_problem(figure, tracks, camera, keyframes, fps_out=fps_out, weights=weights, keypoints=keypoints,
+                           calibrate=mode)
+    span = windowed_length(problem.n_frames, window if window is not None or floor is None and contact is None else 0)
+    if span:  # a long clip: windows in bounded memory (the fault stage runs in each)
+        if floor is not None or contact is not None:
+            raise InputError("the feet stage (floor, contact) needs one batch solve: pass window=0", field="window")
+        return _package(problem, solve_windowed(problem, _start_name(init, seed), options, callback, window=span), auto)
     q0 = initial_trajectory(problem, _start_name(init, seed))
-    res = solve(problem, q0, options, callback, active=problem.active)
-    return _package(problem, res)
+    res = solve(problem, q0, options, callback, active=problem.active, g0=problem.g0)
+    res = fault_stage(problem, res, options, callback)  # left/right swaps repaired (warm re-solve), outliers
+    if floor is None and contact is None:
+        return _package(problem, res, auto)
+    problem, res, feet = solve_on_the_floor(
+        problem, res, "auto" if floor is None else floor, "auto" if contact is None else contact,
+        settings=contact_settings, options=options, callback=callback,
+    )
+    result = _package(problem, res, auto)
+    result.extras.update(feet.to_extras())
+    return result
 
 
 def reconstruct_markers(
@@ -157,18 +271,43 @@ def reconstruct_markers(
     return _package(problem, res)
 
 
-def _package(problem: ReconstructionProblem, res: SolveResult) -> Result:
-    """The solved trajectory as a :class:`Result`: keypoints and per-frame reprojection error."""
-    figure, meas = problem.figure, problem.measurement
-    Q = figure.normalize(res.x)
+def _package(problem: ReconstructionProblem, res: SolveResult, auto: dict | None = None) -> Result:
+    """The solved trajectory as a :class:`Result`: keypoints and per-frame reprojection
+    error, over all cameras and per camera. With global unknowns: the calibrated figure,
+    its keypoints, the fitted cameras and ``calibration``."""
+    g = getattr(res, "g", None)
+    g = problem.g0 if g is None or not len(g) else g
+    Q = problem.figure.normalize(res.x)
+    figure = problem.figure_at(g)
     P = figure.keypoints(Q)
     T = Q.shape[0]
-    err = np.full(T, np.nan)
+    views = problem.views
+    err_sum, err_n = np.zeros(T), np.zeros(T)
+    per_camera = np.full((len(views), T), np.nan)
     observed = np.zeros(T, bool)
-    if meas is not None and len(meas.frames):
-        e = meas.reprojection_error_px(problem.state(Q, jacobian=False))
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)
-            err[meas.frames] = np.nanmean(e, axis=1)
+    if views:
+        state = problem.state(Q, jacobian=False, g=g)
+    for c, view in enumerate(views):
+        meas = view.measurement
+        if not len(meas.frames):
+            continue
+        e = meas.reprojection_error_px(state)
+        ok = np.isfinite(e)
+        n = ok.sum(axis=1)
+        s = np.where(ok, e, 0.0).sum(axis=1)
+        np.add.at(err_sum, meas.frames, s)
+        np.add.at(err_n, meas.frames, n)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            per_camera[c, meas.frames] = np.where(n > 0, s / np.maximum(n, 1), np.nan)
         observed[meas.frames] = True
-    return Result(figure, Q, np.arange(T) / problem.fps, problem.fps, P, err, res, observed, problem.camera)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        err = np.where(err_n > 0, err_sum / np.maximum(err_n, 1), np.nan)
+    result = Result(
+        figure, Q, np.arange(T) / problem.fps, problem.fps, P, err, res, observed,
+        cameras=problem.cameras_at(g), camera_names=problem.camera_names,
+        reprojection_error_px_per_camera=per_camera if views else None,
+        calibration={**problem.calibration(g), **({"camera_auto": auto} if auto else {})},
+    )
+    for report in getattr(problem, "reports", {}).values():  # the hypotheses start, the fault stage
+        result.extras.update(report.to_extras())
+    return result

@@ -12,6 +12,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .cameras import camera_from_dict
+from .contact import FOOT_EXTRAS, FootContact, foot_metrics
+
+#: extras of the hypotheses start and the fault stage, kept by :func:`load_result`
+FAULT_EXTRAS_PREFIXES = ("hypothesis_", "repaired_", "outlier_")
+from .errors import InputError
 from .figure import Figure, parse_keypoint_entries
 from .io.results import load_result_npz, save_result_npz
 from .solver import SolveResult
@@ -34,6 +39,17 @@ class Result:
         frame (NaN where a frame has no 2D observation).
     solve : the solver's :class:`~pinrecon.solver.SolveResult` (status, report ...).
     observed_frames : (T,) bool, frames that had observations.
+    camera : the camera (the first camera when there are several).
+    cameras : every camera, in the order they were given (``[camera]`` with one).
+    camera_names : their names (from the calibration file, else ``camera1`` ...).
+    reprojection_error_px_per_camera : (C, T) mean reprojection error of each camera's
+        observed points per frame (NaN where that camera observed nothing); the
+        ``reprojection_error_px`` above is the mean over every camera's points.
+    calibration : what a calibrated solve fitted (:meth:`pinrecon.problem.
+        ReconstructionProblem.calibration`): ``mode``, the segment groups' ``factors``,
+        ``lengths_m`` and ``generic_lengths_m``, the ``cameras``' start and fitted focal
+        length (or scale); empty without calibration. ``figure`` is then the calibrated
+        figure and ``camera``/``cameras`` the fitted cameras.
     """
 
     figure: object
@@ -46,6 +62,18 @@ class Result:
     observed_frames: np.ndarray
     camera: object = None
     extras: dict = field(default_factory=dict)
+    cameras: list = field(default_factory=list)
+    camera_names: list = field(default_factory=list)
+    reprojection_error_px_per_camera: np.ndarray | None = None
+    calibration: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        if not self.cameras and self.camera is not None:
+            self.cameras = [self.camera]
+        if self.camera is None and self.cameras:
+            self.camera = self.cameras[0]
+        if len(self.camera_names) != len(self.cameras):
+            self.camera_names = [f"camera{i + 1}" for i in range(len(self.cameras))]
 
     @property
     def report(self):
@@ -87,11 +115,141 @@ class Result:
             f"{len(self.times)} frames at {self.fps:g} fps, figure {self.figure.name!r} (nv={self.figure.nv})",
             f"reprojection error {err:.3f} px (mean over observed points)",
         ]
+        per = self.reprojection_error_px_per_camera
+        if per is not None and len(self.cameras) > 1:
+            for name, e in zip(self.camera_names, per):
+                m = np.nanmean(e) if np.any(np.isfinite(e)) else float("nan")
+                lines.append(f"  camera {name!r}: {m:.3f} px")
         if s is not None:
             lines.append(
                 f"solver: {s.status} after {s.iterations} iterations in {s.time:.2f} s, cost {s.initial_cost:.6g} -> {s.cost:.6g}"
             )
+        lines += self.calibration_summary()
+        lines += self.feet_summary()
+        lines += self.faults_summary()
         return "\n".join(lines)
+
+    def faults_summary(self, limit: int = 6) -> list[str]:
+        """Uncertain limb-reflection spans (the hypotheses start), repaired left/right swaps
+        and outliers (the fault stage), from ``extras``; frames of the reconstruction
+        (spans) and of the tracks (repairs, outliers)."""
+        x, lines = self.extras, []
+        if "hypothesis_spans" in x:
+            chains = [str(c) for c in np.asarray(x["hypothesis_chains"]).tolist()]
+            spans = np.asarray(x["hypothesis_spans"], float).reshape(-1, 5)
+            thr = float(x.get("hypothesis_threshold", 2.0))
+            unc = spans[spans[:, 4] < thr]
+            lines.append(f"limb reflections: {len(spans)} spans over {len(chains)} limbs, {len(unc)} uncertain "
+                         f"(cost gap < {thr:g} nats: a keyframe there would decide them)")
+            for c, a, b, _, gap in unc[np.argsort(unc[:, 4])][:limit]:
+                lines.append(f"  {chains[int(c)]}: frames {int(a)}-{int(b) - 1} ({a / self.fps:.2f}-"
+                             f"{(b - 1) / self.fps:.2f} s), gap {gap:.1f}")
+            if len(unc) > limit:
+                lines.append(f"  ... and {len(unc) - limit} more")
+        if "repaired_frames" in x:
+            fr = np.asarray(x["repaired_frames"], int)
+            shown = ", ".join(str(f) for f in fr[:20]) + (" ..." if len(fr) > 20 else "")
+            lines.append(f"left/right swaps repaired in {len(fr)} frames" + (f": {shown}" if len(fr) else ""))
+        if "outlier_frames" in x:
+            fr, names, err = (np.asarray(x[k]) for k in ("outlier_frames", "outlier_points", "outlier_error_px"))
+            lines.append(f"{len(fr)} points stayed far off after convergence (> "
+                         f"{float(x.get('outlier_threshold_px', np.nan)):.1f} px; down-weighted as outliers)")
+            for f, n, e in sorted(zip(fr.tolist(), names.tolist(), err.tolist()), key=lambda r: -r[2])[:limit]:
+                lines.append(f"  frame {f} {n}: {e:.1f} px")
+        return lines
+
+    def calibration_summary(self) -> list[str]:
+        """The fitted segment lengths (each group's mean segment length, generic ->
+        fitted) and cameras, as summary lines."""
+        c = self.calibration or {}
+        if not c:
+            return []
+        lines = [f"calibration: {c.get('mode', '?')}"]
+        fitted, generic = c.get("lengths_m") or {}, c.get("generic_lengths_m") or {}
+        if fitted:
+            lines.append("  segment lengths (generic -> fitted):")
+            items = [f"{g} {generic.get(g, float('nan')):.3f} -> {m:.3f} m ({100 * (m / generic[g] - 1):+.1f} %)"
+                     if generic.get(g) else f"{g} {m:.3f} m" for g, m in fitted.items()]
+            lines += [f"    {'; '.join(items[i:i + 3])}" for i in range(0, len(items), 3)]
+        for name, cam in (c.get("cameras") or {}).items():
+            what, unit = ("focal length", "px") if cam.get("quantity") == "focal_px" else ("scale", "px/m")
+            lines.append(f"  camera {name!r}: {what} {cam['start']:.1f} -> {cam['fitted']:.1f} {unit}")
+        auto = c.get("camera_auto")
+        if auto and self.camera is not None:
+            cam = self.camera
+            if getattr(cam, "model", "") == "perspective":
+                what = (f"f {cam.K[0, 0]:.1f} px, principal point ({cam.K[0, 2]:.1f}, {cam.K[1, 2]:.1f}), "
+                        f"centre at {np.round(-cam.R.T @ cam.t, 3).tolist()} m")
+            else:
+                what = f"scale {cam.scale:.1f} px/m, world origin at ({cam.center[0]:.1f}, {cam.center[1]:.1f}) px"
+            lines.append(f"  auto camera ({auto.get('projection')}): {what}; pose: {auto.get('pose')}")
+        return lines
+
+    def foot_metrics(self) -> dict | None:
+        """Skating, penetration and floating of the foot points against the result's own
+        floor and contacts (:func:`pinrecon.contact.foot_metrics`), when it has them."""
+        feet = FootContact.from_extras(self.extras)
+        if feet is None:
+            return None
+        P = self.keypoints3d[:, self.figure.keypoint_index(feet.names)]
+        return foot_metrics(P, feet.floor, feet.contact, self.fps, clearance_m=feet.clearance_m,
+                            contact_height_m=feet.contact_height_m)
+
+    def feet_summary(self) -> list[str]:
+        m = self.foot_metrics()
+        if m is None:
+            return []
+        fl = FootContact.from_extras(self.extras).floor
+        n = ", ".join(f"{x:.3f}" for x in fl.normal)
+        return [
+            f"floor: normal ({n}), height {fl.offset_m:.3f} m; {m['contact_frames']} foot-point contacts",
+            f"feet: skating {100 * m['skating_mps']:.2f} cm/s in contact, penetration {1000 * m['penetration_m']:.1f} mm "
+            f"(max {1000 * m['penetration_max_m']:.1f} mm), floating {1000 * m['floating_m']:.1f} mm",
+        ]
+
+    def _cameras_arrays(self) -> dict:
+        """The several-camera keys (``cameras``, ``camera_names``,
+        ``reprojection_error_px_per_camera``), written only for two or more cameras: a
+        one-camera file has ``camera`` alone."""
+        if len(self.cameras) < 2:
+            return {}
+        return {
+            "cameras": np.array(json.dumps([c.to_dict() for c in self.cameras])),
+            "camera_names": np.array(json.dumps(list(self.camera_names))),
+            "reprojection_error_px_per_camera": self.reprojection_error_px_per_camera,
+        }
+
+    def save_figure(self, path) -> list[str]:
+        """Write the result's figure (the calibrated one after a calibrated solve) for
+        reuse: its URDF to ``path``, with the figure's joint limits written into the
+        limited joints, and its keypoint map to ``<path stem>.keypoints.json`` next to it.
+        Read it back with ``Figure.from_urdf(path, "<stem>.keypoints.json")`` (CLI:
+        ``--figure path --keypoints <stem>.keypoints.json``). Returns the two paths."""
+        from pathlib import Path
+
+        from lxml import etree
+
+        from .io.atomic import atomic_write_text
+
+        fig = self.figure
+        if fig is None or not fig.urdf_xml:
+            raise InputError("the result has no figure with a URDF to save", field="figure")
+        root = etree.fromstring(fig.urdf_xml.encode())
+        limits = fig.limits_dict()
+        for joint in root.iter("joint"):
+            lim = limits.get(joint.get("name"))
+            if lim is None or joint.get("type") not in ("revolute", "prismatic"):
+                continue
+            el = joint.find("limit")
+            if el is None:
+                el = etree.SubElement(joint, "limit", effort="0", velocity="0")
+            el.set("lower", repr(float(lim[0])))
+            el.set("upper", repr(float(lim[1])))
+        path = Path(path)
+        kp_path = path.with_name(path.stem + ".keypoints.json")
+        atomic_write_text(path, etree.tostring(root, encoding="unicode"))
+        atomic_write_text(kp_path, json.dumps(fig.keypoint_map_dict(), indent=1))
+        return [str(path), str(kp_path)]
 
     def save(self, path) -> None:
         """Write the result NPZ (``docs/formats.md``), atomically. It embeds the figure's
@@ -117,10 +275,25 @@ class Result:
             figure_meta=np.array(json.dumps(meta)),
             figure_limits=np.array(json.dumps({k: list(v) for k, v in fig.limits_dict().items()})),
             camera=np.array(json.dumps(self.camera.to_dict()) if self.camera is not None else ""),
+            **self._cameras_arrays(),
+            **({"calibration": np.array(json.dumps(self.calibration))} if self.calibration else {}),
             solver_status=np.array(self.solve.status if self.solve else ""),
             solver_iterations=np.int64(self.solve.iterations if self.solve else 0),
             **{k: v for k, v in self.extras.items()},
         )
+
+
+def _calibration(d, path) -> dict:
+    """The ``calibration`` JSON of a result file ({} when absent)."""
+    if "calibration" not in d:
+        return {}
+    try:
+        out = json.loads(str(d["calibration"]))
+    except ValueError as exc:
+        raise InputError(f"not JSON ({exc})", file=path, field="calibration") from None
+    if not isinstance(out, dict):
+        raise InputError("must be a JSON object", file=path, field="calibration")
+    return out
 
 
 def load_result(path) -> Result:
@@ -142,6 +315,8 @@ def load_result(path) -> Result:
     cam = None
     if "camera" in d and str(d["camera"]):
         cam = camera_from_dict(json.loads(str(d["camera"])), file=path)
+    cams = [camera_from_dict(c, file=path) for c in json.loads(str(d["cameras"]))] if "cameras" in d else []
+    cam_names = json.loads(str(d["camera_names"])) if "camera_names" in d else []
     fps = float(d["fps"]) if "fps" in d else (1.0 / np.diff(d["times"]).mean() if len(d["times"]) > 1 else 1.0)
     T = d["q"].shape[0]
     return Result(
@@ -154,4 +329,9 @@ def load_result(path) -> Result:
         solve=None,
         observed_frames=d.get("observed_frames", np.zeros(T, bool)),
         camera=cam,
+        cameras=cams,
+        camera_names=cam_names,
+        reprojection_error_px_per_camera=d.get("reprojection_error_px_per_camera"),
+        extras={k: d[k] for k in d if k in FOOT_EXTRAS or k.startswith(FAULT_EXTRAS_PREFIXES)},
+        calibration=_calibration(d, path),
     )

@@ -26,6 +26,11 @@ __all__ = [
     "human_walk",
     "side_camera",
     "BODY_EXCLUDE",
+    "COCO_BODY_FROM_CMU",
+    "coco_body_tracks",
+    "perspective_side_camera",
+    "detector_faults",
+    "DetectorFaults",
 ]
 
 #: substrings of BVH keypoint names left out of "body" keypoint sets (CMU fingers carry no data)
@@ -217,3 +222,89 @@ def side_camera(q, azimuth_deg: float = 45.0, *, scale: float = 300.0, center=(5
     side = np.cross([0.0, 1.0, 0.0], d)
     a = np.radians(azimuth_deg)
     return Orthographic.from_view(np.cos(a) * side + np.sin(a) * d, scale=scale, center=center)
+
+
+#: the 12 COCO-17 body points -> the joints of the CMU MotionBuilder-friendly BVH skeletons
+COCO_BODY_FROM_CMU = {
+    "left_shoulder": "LeftArm", "right_shoulder": "RightArm", "left_elbow": "LeftForeArm",
+    "right_elbow": "RightForeArm", "left_wrist": "LeftHand", "right_wrist": "RightHand",
+    "left_hip": "LeftUpLeg", "right_hip": "RightUpLeg", "left_knee": "LeftLeg", "right_knee": "RightLeg",
+    "left_ankle": "LeftFoot", "right_ankle": "RightFoot",
+}
+
+
+def coco_body_tracks(figure, Q, camera, *, fps: float, noise_px: float = 0.0, seed=0) -> tuple[Tracks, np.ndarray]:
+    """A CMU clip's 12 body joints seen by ``camera`` as COCO-17 named tracks.
+
+    Returns the tracks (``noise_px`` Gaussian pixel noise, nothing missing) and the true
+    3D positions (T, 12, 3) of those joints in the tracks' order (the ground truth a
+    reconstruction with another figure, e.g. ``Figure.human()``, is scored against)."""
+    coco = list(COCO_BODY_FROM_CMU)
+    P = figure.keypoints(Q)[:, figure.keypoint_index([COCO_BODY_FROM_CMU[n] for n in coco])]
+    rng = np.random.default_rng(seed)
+    uv = camera.project(P) + rng.normal(0.0, noise_px, P.shape[:2] + (2,))
+    return Tracks(uv, coco, fps), P
+
+
+def perspective_side_camera(q, azimuth_deg: float = 45.0, *, distance_m: float = 6.0, f_px: float = 1200.0,
+                            height_m: float = 0.0, center=(960.0, 540.0)):
+    """A perspective camera ``azimuth_deg`` from side-on (as :func:`side_camera`), standing
+    ``distance_m`` from the middle of the root's path (horizontally) and ``height_m`` above
+    it, looking at it."""
+    from .cameras import Perspective
+
+    d = np.array(q[-1, :3] - q[0, :3], float)
+    d[1] = 0.0
+    n = np.linalg.norm(d)
+    d = d / n if n > 1e-6 else np.array([0.0, 0.0, 1.0])
+    side = np.cross([0.0, 1.0, 0.0], d)
+    a = np.radians(azimuth_deg)
+    forward = np.cos(a) * side + np.sin(a) * d
+    target = 0.5 * (np.asarray(q[0, :3], float) + np.asarray(q[-1, :3], float))
+    eye = target - distance_m * forward + np.array([0.0, height_m, 0.0])
+    return Perspective.look_at(eye, target, f_px=f_px, center=center)
+
+
+class DetectorFaults(dict):
+    """What :func:`detector_faults` did: ``swapped_frames`` (frames whose left and right
+    labels were exchanged), ``outliers`` ((n, 2) frame, point index), ``missing`` ((T, K)
+    bool)."""
+
+
+def detector_faults(tracks: Tracks, *, noise_px: float = 2.0, outliers: float = 0.02,
+                    outlier_px: tuple[float, float] = (20.0, 80.0), swaps: float = 0.01, missing: float = 0.03,
+                    confidence: tuple[float, float] = (0.6, 1.0),
+                    outlier_confidence: tuple[float, float] = (0.2, 0.6), seed=0) -> tuple[Tracks, DetectorFaults]:
+    """Clean tracks made to look like a 2D detector's output.
+
+    ``noise_px`` Gaussian noise on every point; a share ``outliers`` of the points thrown
+    ``outlier_px`` pixels away in a random direction, with confidence drawn from
+    ``outlier_confidence`` (the others from ``confidence``); a share ``swaps`` of the frames
+    with every ``left_*``/``right_*`` (``Left*``/``Right*``) pair of labels exchanged
+    (at least one frame when ``swaps > 0``); a share ``missing`` of the points dropped.
+    Returns the faulty tracks (with confidences) and a :class:`DetectorFaults` log."""
+    rng = np.random.default_rng(seed)
+    uv = np.array(tracks.points, float)
+    T, K = uv.shape[:2]
+    uv += rng.normal(0.0, noise_px, uv.shape)
+    conf = rng.uniform(*confidence, (T, K))
+    n_out = int(round(outliers * T * K))
+    flat = rng.choice(T * K, n_out, replace=False) if n_out else np.zeros(0, int)
+    ft, fk = np.unravel_index(flat, (T, K))
+    ang = rng.uniform(0.0, 2.0 * np.pi, n_out)
+    r = rng.uniform(*outlier_px, n_out)
+    uv[ft, fk] += np.stack([np.cos(ang), np.sin(ang)], axis=1) * r[:, None]
+    conf[ft, fk] = rng.uniform(*outlier_confidence, n_out)
+    from .faults import left_right_pairs
+
+    pairs = left_right_pairs(tracks.names)
+    n_swap = max(1, int(round(swaps * T))) if swaps > 0 and pairs else 0
+    swapped = np.sort(rng.choice(T, n_swap, replace=False)) if n_swap else np.zeros(0, int)
+    for a, b in pairs:
+        uv[swapped[:, None], [a, b]] = uv[swapped[:, None], [b, a]]
+        conf[swapped[:, None], [a, b]] = conf[swapped[:, None], [b, a]]
+    miss = rng.random((T, K)) < missing
+    uv[miss] = np.nan
+    conf[miss] = 0.0
+    log = DetectorFaults(swapped_frames=swapped, outliers=np.stack([ft, fk], axis=1), missing=miss)
+    return Tracks(uv, list(tracks.names), tracks.fps, conf, tracks.source), log

@@ -3,15 +3,19 @@
 Validation lives here: every problem is reported with the file, the field and the frame.
 
 This is the one place that builds :class:`Tracks` from files: the format readers in
-:mod:`pinrecon.io` (``tracks_json``, ``coco``, ``openpose_json``) return plain
-:class:`~pinrecon.io.track_arrays.TrackArrays` and never import this module;
-:func:`load_tracks` calls them and :meth:`Tracks.from_arrays` validates.
+:mod:`pinrecon.io` (``tracks_json``, ``coco``, ``openpose_json``, ``mmpose``) return
+plain :class:`~pinrecon.io.track_arrays.TrackArrays` and never import this module;
+:func:`load_tracks` calls them and :meth:`Tracks.from_arrays` validates and issues the
+readers' notes (broken frames, people followed, layout chosen) as one
+:class:`TracksWarning` each.
 """
 
 from __future__ import annotations
 
+import json
 import math
 import os
+import warnings
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -19,12 +23,36 @@ from pathlib import Path
 import numpy as np
 
 from .errors import InputError, UnknownNameError
-from .io.coco import is_coco_json, read_coco
+from .io.coco import coco_kind, read_coco
+from .io.mmpose import is_mmpose, read_mmpose
 from .io.openpose_json import read_openpose
-from .io.track_arrays import TrackArrays
+from .io.people import MAX_COORD
+from .io.track_arrays import TrackArrays, TracksWarning
 from .io.tracks_json import read_tracks_json, read_tracks_npz, write_tracks
 
-__all__ = ["Tracks", "Markers", "Keyframe", "Keyframes", "load_tracks", "load_keyframes", "keyframes_from_points"]
+__all__ = [
+    "Tracks",
+    "TracksWarning",
+    "Markers",
+    "Keyframe",
+    "Keyframes",
+    "load_tracks",
+    "guess_tracks_format",
+    "load_keyframes",
+    "keyframes_from_points",
+    "TRACKS_FORMATS",
+]
+
+TRACKS_FORMATS = ("json", "npz", "openpose", "coco", "alphapose", "mmpose")
+FPS_RANGE = (1e-3, 1e6)  # a frame rate outside it makes the time step under- or overflow
+
+
+def _finite(x) -> bool:
+    """A finite real number (huge Python ints, which no float holds, are not)."""
+    try:
+        return math.isfinite(x)
+    except (OverflowError, TypeError):
+        return False
 
 
 @dataclass(eq=False)
@@ -38,6 +66,7 @@ class Tracks:
     fps : frames per second.
     confidence : optional (T, K) weights in [0, 1] (detector scores); NaN counts as 0.
     source : file the tracks came from, for error messages.
+    layout : the detector layout the points were read as (:mod:`pinrecon.layouts`), if any.
     """
 
     points: np.ndarray
@@ -45,12 +74,17 @@ class Tracks:
     fps: float
     confidence: np.ndarray | None = None
     source: str | None = None
+    layout: str | None = None
 
     def __post_init__(self):
         src = self.source
+        if np.asarray(self.points).dtype.kind == "c" or (
+            self.confidence is not None and np.asarray(self.confidence).dtype.kind == "c"
+        ):
+            raise InputError("must be real numbers, not complex", file=src, field="points")
         try:
             pts = np.array(self.points, dtype=float)
-        except (TypeError, ValueError):
+        except (TypeError, ValueError, OverflowError):
             raise InputError("must be numeric (T, K, 2)", file=src, field="points") from None
         if pts.ndim != 3 or pts.shape[2] != 2:
             raise InputError(f"expected shape (T, K, 2), got {pts.shape}", file=src, field="points")
@@ -65,18 +99,30 @@ class Tracks:
         if (
             isinstance(self.fps, bool)
             or not isinstance(self.fps, (int, float, np.floating, np.integer))
-            or not math.isfinite(self.fps)
+            or not _finite(self.fps)
             or self.fps <= 0
         ):
             raise InputError(f"must be a positive number, got {self.fps!r}", file=src, field="fps")
+        if not FPS_RANGE[0] <= self.fps <= FPS_RANGE[1]:
+            raise InputError(
+                f"must be between {FPS_RANGE[0]:g} and {FPS_RANGE[1]:g} frames per second, got {self.fps!r}",
+                file=src,
+                field="fps",
+            )
         # a point is missing if either coordinate is NaN/inf: make both NaN
         bad = ~np.all(np.isfinite(pts), axis=2)
         pts[bad] = np.nan
+        huge = np.argwhere(np.abs(np.where(bad[..., None], 0.0, pts)) > MAX_COORD)
+        if huge.size:
+            raise InputError(
+                f"coordinates beyond +-{MAX_COORD:g} px are no image positions", file=src, field="points",
+                frame=int(huge[0, 0]),
+            )
         conf = None
         if self.confidence is not None:
             try:
                 conf = np.array(self.confidence, dtype=float)
-            except (TypeError, ValueError):
+            except (TypeError, ValueError, OverflowError):
                 raise InputError("must be numeric (T, K)", file=src, field="confidence") from None
             if conf.shape != pts.shape[:2]:
                 raise InputError(
@@ -93,10 +139,15 @@ class Tracks:
     @classmethod
     def from_arrays(cls, arrays: TrackArrays, *, fps: float | None = None) -> Tracks:
         """Validated tracks from a format reader's plain arrays; ``fps`` (when given)
-        replaces the file's frame rate (OpenPose and COCO store none)."""
-        return cls(
-            arrays.points, arrays.names, arrays.fps if fps is None else fps, arrays.confidence, arrays.source
+        replaces the file's frame rate (OpenPose and COCO store none). The reader's
+        notes are issued as :class:`TracksWarning` (one warning each)."""
+        tracks = cls(
+            arrays.points, arrays.names, arrays.fps if fps is None else fps, arrays.confidence, arrays.source,
+            arrays.layout,
         )
+        for note in arrays.notes:
+            warnings.warn(note, TracksWarning, stacklevel=3)
+        return tracks
 
     @property
     def T(self) -> int:
@@ -132,13 +183,13 @@ class Tracks:
             raise UnknownNameError("track", unknown, self.names, file=self.source, field="names")
         idx = [index[n] for n in names]
         conf = None if self.confidence is None else self.confidence[:, idx]
-        return Tracks(self.points[:, idx], list(names), self.fps, conf, self.source)
+        return Tracks(self.points[:, idx], list(names), self.fps, conf, self.source, self.layout)
 
     def frames(self, start: int = 0, stop: int | None = None, step: int = 1) -> Tracks:
         """A frame range (``step`` > 1 subsamples and divides fps)."""
         sl = slice(start, stop, step)
         conf = None if self.confidence is None else self.confidence[sl]
-        return Tracks(self.points[sl], self.names, self.fps / step, conf, self.source)
+        return Tracks(self.points[sl], self.names, self.fps / step, conf, self.source, self.layout)
 
     def __repr__(self):
         miss = 1.0 - self.observed.mean() if self.T and self.K else 0.0
@@ -153,33 +204,66 @@ class Tracks:
         write_tracks(path, t.points, t.names, t.fps, t.confidence)
 
 
-def load_tracks(path: str | os.PathLike, *, fps: float | None = None, fmt: str | None = None) -> Tracks:
-    """Read tracks from pinrecon JSON/NPZ, an OpenPose folder, or a COCO keypoint file.
+def guess_tracks_format(path: str | os.PathLike) -> str:
+    """The tracks format of ``path``: a folder is ``openpose``; ``.npz`` is ``npz``; a
+    JSON file is ``openpose`` (one frame: ``people``), ``coco`` (``annotations`` or a
+    results list), ``mmpose`` (``instance_info``, ``predictions`` or a list of frames
+    with ``instances``) or ``json`` (pinrecon's own, also for unreadable files, whose
+    reader reports the problem)."""
+    path = Path(path)
+    if path.is_dir():
+        return "openpose"
+    if path.suffix.lower() == ".npz":
+        return "npz"
+    try:
+        data = json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, ValueError, RecursionError):
+        return "json"
+    if isinstance(data, dict) and "people" in data and "points" not in data:
+        return "openpose"
+    if is_mmpose(data):
+        return "mmpose"
+    if coco_kind(data) is not None:
+        return "coco"
+    return "json"
 
-    ``fmt`` is one of ``"json"``, ``"npz"``, ``"openpose"``, ``"coco"``; by default it is
-    guessed (a folder is OpenPose; a JSON file with ``annotations`` or a list is COCO).
-    ``fps`` is required for OpenPose and COCO input, which store no frame rate.
-    (:func:`pinrecon.io.openpose.load_openpose` picks another OpenPose person.)
+
+def load_tracks(
+    path: str | os.PathLike,
+    *,
+    fps: float | None = None,
+    fmt: str | None = None,
+    person=None,
+    layout=None,
+) -> Tracks:
+    """Read tracks from pinrecon JSON/NPZ, an OpenPose folder (or file), a COCO
+    dataset or results file (AlphaPose results too) or MMPose / RTMPose JSON.
+
+    ``fmt`` is one of ``TRACKS_FORMATS``; by default it is guessed
+    (:func:`guess_tracks_format`). ``fps`` is required for detector output, which
+    stores no frame rate. For detector output, ``person`` picks the subject followed
+    through the frames (an index in the first frame with people, a box ``(x1, y1,
+    x2, y2)``, or ``"largest"``; see :mod:`pinrecon.io.people`) and ``layout`` names
+    the detector's point layout (default: detected; see :mod:`pinrecon.layouts`).
+    Broken frames are read as missing, with one warning that counts them.
     """
     path = Path(path)
     if not path.exists():
         raise InputError("file not found", file=path)
     if fmt is None:
-        if path.is_dir():
-            fmt = "openpose"
-        elif path.suffix.lower() == ".npz":
-            fmt = "npz"
-        else:
-            fmt = "coco" if is_coco_json(path) else "json"
+        fmt = guess_tracks_format(path)
     if fmt == "json":
         return Tracks.from_arrays(read_tracks_json(path))
     if fmt == "npz":
         return Tracks.from_arrays(read_tracks_npz(path))
-    if fmt in ("openpose", "coco"):
+    readers = {"openpose": read_openpose, "coco": read_coco, "alphapose": read_coco, "mmpose": read_mmpose}
+    if fmt in readers:
         if fps is None:
             raise InputError(f"{fmt} files store no frame rate: pass fps (--fps)", file=path, field="fps")
-        return Tracks.from_arrays(read_openpose(path) if fmt == "openpose" else read_coco(path), fps=fps)
-    raise InputError(f"unknown tracks format {fmt!r}", file=path, field="format")
+        return Tracks.from_arrays(readers[fmt](path, person=person, layout=layout), fps=fps)
+    raise InputError(
+        f"unknown tracks format {fmt!r}; valid formats are: {', '.join(TRACKS_FORMATS)}", file=path, field="format"
+    )
 
 
 # ------------------------------------------------------------------------------ keyframes
@@ -236,13 +320,13 @@ class Keyframes:
             if (
                 isinstance(frame, bool)
                 or not isinstance(frame, (int, float))
-                or not math.isfinite(frame)
+                or not _finite(frame)
                 or int(frame) != frame
             ):
                 raise InputError(f"'frame' must be an integer, got {frame!r}", file=source, field=fld)
             frame = int(frame)
             sigma = item.get("sigma", 0.01)
-            if isinstance(sigma, bool) or not isinstance(sigma, (int, float)) or not (sigma > 0) or not math.isfinite(sigma):
+            if isinstance(sigma, bool) or not isinstance(sigma, (int, float)) or not (sigma > 0) or not _finite(sigma):
                 raise InputError(f"'sigma' must be a positive number, got {sigma!r}", file=source, field=fld, frame=frame)
             has_p, has_j = "points" in item, "joints" in item
             if has_p == has_j:
@@ -256,7 +340,7 @@ class Keyframes:
                 f2 = f"{fld}.{key}.{name}"
                 try:
                     arr = np.asarray(val, dtype=float)
-                except (TypeError, ValueError):
+                except (TypeError, ValueError, OverflowError):
                     raise InputError(f"not numeric: {val!r}", file=source, field=f2, frame=frame) from None
                 if key == "points" and arr.shape != (3,):
                     raise InputError(f"expected [x, y, z], got shape {arr.shape}", file=source, field=f2, frame=frame)

@@ -36,6 +36,9 @@ __all__ = [
     "load_bvh",
     "static_joints",
     "write_bvh",
+    "bvh_unit",
+    "transform_motion",
+    "BVH_UNITS",
     "euler_to_matrix",
     "matrix_to_euler",
 ]
@@ -145,13 +148,55 @@ def load_bvh(
 
 
 # ---------------------------------------------------------------------------- writing
-def write_bvh(path: str | os.PathLike, figure, q: np.ndarray, fps: float) -> None:
+#: BVH length units by name (metres per file unit)
+BVH_UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001}
+
+
+def bvh_unit(unit) -> float | None:
+    """Metres per file unit of ``unit``: ``"m"``, ``"cm"``, ``"mm"``, a positive number, or
+    ``None`` (the figure's own unit)."""
+    if unit is None:
+        return None
+    if isinstance(unit, str):
+        if unit not in BVH_UNITS:
+            raise InputError(f"unknown unit {unit!r}; use one of {sorted(BVH_UNITS)} or metres per unit",
+                             field="unit")
+        return BVH_UNITS[unit]
+    u = float(unit)
+    if not (u > 0 and np.isfinite(u)):
+        raise InputError(f"must be a positive number of metres per unit, got {unit!r}", field="unit")
+    return u
+
+
+def transform_motion(figure, q: np.ndarray, R_new_world: np.ndarray, t_new: np.ndarray) -> np.ndarray:
+    """Motion ``q`` of a free-flyer figure moved rigidly into a new world:
+    ``p_new = R_new_world p_world + t_new`` for every point of the figure (the root's pose
+    is premultiplied; joint values do not change)."""
+    if not figure.floating:
+        raise InputError("only a figure with a free-flyer root can be moved in the world", field="figure")
+    q = np.array(q, float)
+    R = np.asarray(R_new_world, float)
+    q[:, :3] = q[:, :3] @ R.T + np.asarray(t_new, float)
+    q[:, 3:7] = matrix_to_quat_xyzw(R @ quat_xyzw_to_matrix(q[:, 3:7]))
+    return q
+
+
+def write_bvh(path: str | os.PathLike, figure, q: np.ndarray, fps: float, *, unit=None, world=None) -> None:
     """Write motion ``q`` (frames, nq) of ``figure`` as BVH, atomically.
 
     A figure built from a BVH writes back with its original joint names, channel orders,
     offsets and end sites, in its own length unit. Other figures are converted by
     :func:`pinrecon.io.bvh_urdf.urdf_figure_to_bvh`. Values are written with 9 decimals
     so positions survive the round trip to well below 1e-6 m.
+
+    Options (defaults keep the motion as it is):
+
+    unit : the file's length unit, ``"m"``, ``"cm"``, ``"mm"`` or metres per unit (default:
+        the figure's own, metres for URDF figures).
+    world : ``(R, t)``, a rotation (3, 3) and translation (3,) metres moving the whole
+        motion rigidly (``p -> R p + t``) before writing, e.g. from
+        :func:`pinrecon.io.bvh_export.ground_frame` (floor at height zero, Y up, facing +Z).
+        A fixed-base figure takes it in its ROOT channels.
     """
     q = np.asarray(q, float)
     if q.ndim != 2 or q.shape[1] != figure.nq:
@@ -161,11 +206,38 @@ def write_bvh(path: str | os.PathLike, figure, q: np.ndarray, fps: float) -> Non
     bad = np.where(~np.all(np.isfinite(q), axis=1))[0]
     if bad.size:
         raise InputError("NaN or infinite configuration value", file=path, field="q", frame=int(bad[0]))
+    u = bvh_unit(unit)
+    R = t = None
+    if world is not None:
+        R, t = np.asarray(world[0], float), np.asarray(world[1], float)
+        if R.shape != (3, 3) or t.shape != (3,) or not np.allclose(R @ R.T, np.eye(3), atol=1e-9):
+            raise InputError("world must be (R, t): a rotation matrix (3, 3) and a translation (3,)", field="world")
+        if figure.floating:
+            q = transform_motion(figure, q, R, t)
     if "bvh" in figure.meta:
-        joints, values, unit = _bvh_skeleton_and_values(figure, q)
+        joints, values, unit_m = _bvh_skeleton_and_values(figure, q)
+        if u is not None and u != unit_m:
+            values = _rescale_positions(joints, values, unit_m / u)
+            unit_m = u
     else:
-        joints, values, unit = urdf_figure_to_bvh(figure, q)
-    write_bvh_text(path, joints, values, unit, fps)
+        joints, values, unit_m = urdf_figure_to_bvh(figure, q, 1.0 if u is None else u)
+    if world is not None and not figure.floating:
+        values = np.array(values, float)
+        values[:, 0:3] = t / unit_m  # the ROOT's channels: Xposition Yposition Zposition Zrotation Yrotation Xrotation
+        values[:, 3:6] = matrix_to_euler("ZYX", R[None])[0]
+    write_bvh_text(path, joints, values, unit_m, fps)
+
+
+def _rescale_positions(joints, values, factor: float) -> np.ndarray:
+    """Channel values with every position channel multiplied by ``factor``."""
+    values = np.array(values, float)
+    c = 0
+    for j in joints:
+        for ch in j.channels:
+            if ch.endswith("position"):
+                values[:, c] *= factor
+            c += 1
+    return values
 
 
 def _bvh_skeleton_and_values(figure, q):

@@ -3,7 +3,11 @@
 Columns (header row, in this order):
 
 * ``time`` : seconds.
-* Free-flyer figures: ``root_x, root_y, root_z`` the root position in metres, then
+* Free-flyer figures: ``root_x, root_y, root_z`` the root position in metres (axes: the
+  world the motion is given in; ``pinrecon export`` by default writes it in a grounded
+  world, :func:`pinrecon.io.bvh_export.ground_frame`: **Y up** (``--up z``: Z up), the floor
+  at height 0, x = z = 0 at the root's first position, the figure facing +Z on the first
+  frame (-Y with Z up); right-handed), then
   ``root_rz, root_ry, root_rx`` the root orientation as intrinsic ZYX Euler angles in
   degrees (``R = Rz(rz) Ry(ry) Rx(rx)``, BVH's root convention).
 * One column per 1-dof joint, in the figure's joint order, named as the joint:

@@ -1,9 +1,6 @@
-"""OpenPose output folders read as :class:`pinrecon.Tracks`.
+"""OpenPose folders as :class:`pinrecon.Tracks` (the parser is :mod:`.openpose_json`).
 
-The parser and the point layouts live in :mod:`pinrecon.io.openpose_json` (plain data,
-re-exported here); this module only adds :func:`load_openpose`, which makes the
-``Tracks`` with :meth:`pinrecon.Tracks.from_arrays` like :func:`pinrecon.load_tracks`.
-It imports :mod:`pinrecon.tracks`; ``tracks`` imports only the parser.
+This module imports :mod:`pinrecon.tracks`, so :mod:`pinrecon.tracks` imports only the parser.
 """
 
 from __future__ import annotations
@@ -16,10 +13,13 @@ from .openpose_json import BODY_25, COCO_18, read_openpose
 __all__ = ["load_openpose", "read_openpose", "BODY_25", "COCO_18"]
 
 
-def load_openpose(folder: str | os.PathLike, *, fps: float, person: int = 0) -> Tracks:
-    """Read an OpenPose JSON folder (files sorted by name) as tracks at ``fps``.
+def load_openpose(folder: str | os.PathLike, *, fps: float, person=None, layout=None) -> Tracks:
+    """Read an OpenPose JSON folder (files in natural order) as tracks at ``fps``.
 
-    ``person`` selects which detected person of each frame to keep (OpenPose's order).
-    :func:`pinrecon.load_tracks` ``(folder, fps=fps)`` reads person 0 the same way.
+    ``person`` picks the subject followed through the frames: None (the most prominent
+    person of the first frame with people), an index in that frame, a box
+    ``(x1, y1, x2, y2)`` or ``"largest"`` (see :mod:`pinrecon.io.people`); ``layout``
+    names the detector layout (default: detected, see :mod:`pinrecon.layouts`).
+    :func:`pinrecon.load_tracks` ``(folder, fps=fps)`` reads the same way.
     """
-    return Tracks.from_arrays(read_openpose(folder, person=person), fps=fps)
+    return Tracks.from_arrays(read_openpose(folder, person=person, layout=layout), fps=fps)

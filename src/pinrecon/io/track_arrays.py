@@ -12,7 +12,12 @@ from typing import NamedTuple
 
 import numpy as np
 
-__all__ = ["TrackArrays"]
+__all__ = ["TrackArrays", "TracksWarning"]
+
+
+class TracksWarning(UserWarning):
+    """Something about the input tracks the user should know (broken frames read as
+    missing, people followed across frames, a layout chosen by default ...)."""
 
 
 class TrackArrays(NamedTuple):
@@ -20,7 +25,10 @@ class TrackArrays(NamedTuple):
 
     ``points`` (T, K, 2) pixels, NaN where missing; ``names`` K point names; ``fps`` as
     stored in the file (None for formats that store no frame rate: OpenPose, COCO);
-    ``confidence`` (T, K) or None; ``source`` the file or folder read.
+    ``confidence`` (T, K) or None; ``source`` the file or folder read; ``layout`` the
+    detector layout the points were read as (:mod:`pinrecon.layouts`), if any;
+    ``notes`` what the user should be told (issued as :class:`TracksWarning` when the
+    ``Tracks`` is built).
     """
 
     points: np.ndarray
@@ -28,3 +36,5 @@ class TrackArrays(NamedTuple):
     fps: object
     confidence: np.ndarray | None
     source: str
+    layout: str | None = None
+    notes: tuple[str, ...] = ()

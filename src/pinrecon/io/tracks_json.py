@@ -60,7 +60,7 @@ def read_tracks_json(path: str | os.PathLike) -> TrackArrays:
                 )
             try:
                 pts[t, k] = [np.nan if c is None else float(c) for c in p]
-            except (TypeError, ValueError):
+            except (TypeError, ValueError, OverflowError):
                 raise InputError(f"point {names[k]!r} is not numeric: {p!r}", file=path, field="points", frame=t) from None
     conf = data.get("confidence")
     if conf is not None:
@@ -72,7 +72,7 @@ def read_tracks_json(path: str | os.PathLike) -> TrackArrays:
                 raise InputError(f"expected {K} values", file=path, field="confidence", frame=t)
             try:
                 arr[t] = [np.nan if c is None else float(c) for c in row]
-            except (TypeError, ValueError):
+            except (TypeError, ValueError, OverflowError):
                 raise InputError("not numeric", file=path, field="confidence", frame=t) from None
         conf = arr
     return TrackArrays(pts, names, fps, conf, str(path))
@@ -86,8 +86,8 @@ def read_tracks_npz(path: str | os.PathLike) -> TrackArrays:
     try:
         with np.load(path, allow_pickle=False) as z:
             data = {k: z[k] for k in z.files}
-    except (ValueError, OSError) as exc:
-        raise InputError(f"not a readable NPZ file ({exc})", file=path) from None
+    except Exception as exc:  # noqa: BLE001 - a damaged archive fails in zipfile, zlib or numpy's .npy header parser
+        raise InputError(f"not a readable NPZ file ({type(exc).__name__}: {exc})", file=path) from None
     for key in ("fps", "names", "points"):
         _require(data, key, path)
     fps = data["fps"]

@@ -36,8 +36,9 @@ def _pair_prune(x: np.ndarray, sigma: float, model_tol: float, factor: float, mi
     n_valid = valid.sum(axis=0)
     U0 = np.where(valid[..., None], U, 0.0)
     r = np.linalg.norm(U0, axis=2)
-    with np.errstate(invalid="ignore"):
-        med = np.nanmedian(np.where(valid, r, np.nan), axis=0)
+    med = np.zeros(len(ii))  # pairs never seen together (a joint never detected) stay 0: pruned
+    seen = n_valid > 0
+    med[seen] = np.nanmedian(np.where(valid[:, seen], r[:, seen], np.nan), axis=0)
     ok = (n_valid >= min_frames) & (med > 10 * max(sigma, 1e-300))
     scale = np.where(ok, med, 1.0)
     un = U0 / scale[None, :, None]
@@ -48,6 +49,7 @@ def _pair_prune(x: np.ndarray, sigma: float, model_tol: float, factor: float, mi
     A = np.einsum("tpi,tpj->pij", rows, rows)
     b = rows.sum(axis=0)
     A += 1e-12 * np.trace(A, axis1=1, axis2=2)[:, None, None] * np.eye(3)
+    A[~ok] = np.eye(3)  # pruned pairs (e.g. no frame in common: A = 0) must not stop the solve
     m = np.linalg.solve(A, b[..., None])[..., 0]  # (P, 3)
     lam_min, _, _, _ = conic_eig(m)
     ok &= lam_min > 0

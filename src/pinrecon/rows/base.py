@@ -19,11 +19,14 @@ unknowns, the keypoints of the figure scaled by them with their derivatives
 
 from __future__ import annotations
 
+import weakref
 from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["RowBlock", "RowKind", "State"]
+from ..kinematics import keypoint_jacobians_from_world, point_jacobian_factors
+
+__all__ = ["RowBlock", "RowKind", "State", "supported_columns"]
 
 
 @dataclass
@@ -105,6 +108,10 @@ class State:
         self.proportion_cols = np.zeros(0, dtype=int)
         self.slot = np.full(Q.shape[0], -1, dtype=int)
         self.slot[frames] = np.arange(len(frames))
+        # the keypoints' Jacobians are formed from the WORLD joint Jacobian (T_k, 6, nv)
+        # only when a row asks for them (``jacobians``); ``point_jacobians`` projects first
+        self.world_jacobians = None
+        self._jacobians = None
         if proportions is not None:
             if self.g is None:
                 raise ValueError("State: proportions need the global vector g")
@@ -112,14 +119,68 @@ class State:
             self.proportion_cols = cols
             log_factors = self.g[cols]
             if jacobian:
-                self.points, self.jacobians, self.dpoints_dglobals = proportions.kinematics(log_factors, Q[frames])
+                self.points, self.world_jacobians, self.dpoints_dglobals = proportions.world_kinematics(
+                    log_factors, Q[frames])
             else:
-                self.points, self.jacobians = proportions.keypoints(log_factors, Q[frames]), None
+                self.points = proportions.keypoints(log_factors, Q[frames])
         elif len(frames):
-            if jacobian:
-                self.points, self.jacobians = figure.keypoint_jacobians(Q[frames])
-            else:
-                self.points, self.jacobians = figure.keypoints(Q[frames]), None
+            self.points, self.world_jacobians = figure.world_kinematics(Q[frames], jacobian)
         else:
             self.points = np.zeros((0, figure.K, 3))
-            self.jacobians = np.zeros((0, figure.K, 3, figure.nv)) if jacobian else None
+            self.world_jacobians = np.zeros((0, 6, figure.nv)) if jacobian else None
+
+    @property
+    def jacobians(self) -> np.ndarray | None:
+        """(T_k, K, 3, nv) keypoint Jacobians d p_world / d v (``None`` without Jacobians)."""
+        if self._jacobians is None and self.world_jacobians is not None:
+            self._jacobians = keypoint_jacobians_from_world(
+                self.points, self.world_jacobians, self.figure.keypoint_support)
+        return self._jacobians
+
+    def point_jacobians(self, slots, keypoints, A=None, weights=None, cols=None) -> np.ndarray:
+        """(N, M, r, c): ``weights[n, m] A[n, m] d p_k / d v[cols]`` for keypoints
+        ``keypoints`` (M,) at the state's frames ``slots`` (N,) (indices into ``points``),
+        with ``A`` an (r, 3) matrix, per-point (N, M, r, 3) matrices, or the identity
+        (``None``); ``cols`` tangent entries (default all nv).
+
+        The same numbers as ``A @ jacobians[slots][:, keypoints][..., cols]``, computed as
+        one small product per frame with the WORLD joint Jacobian
+        (:func:`pinrecon.kinematics.point_jacobian_factors`), without the (T_k, K, 3, nv)
+        intermediate."""
+        P = _rows_of(self.points, slots)[:, keypoints]
+        G = point_jacobian_factors(P, A)  # (N, M, r, 6)
+        if weights is not None:
+            G = G * np.asarray(weights, float)[..., None, None]
+        N, M, r = G.shape[:3]
+        Jw = _rows_of(self.world_jacobians, slots)
+        support = self.figure.keypoint_support[keypoints]
+        if cols is not None:
+            Jw, support = Jw[:, :, cols], support[:, cols]
+        J = np.matmul(G.reshape(N, M * r, 6), Jw).reshape(N, M, r, Jw.shape[-1])
+        J *= support[None, :, None, :]
+        return J
+
+
+_COLUMNS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def supported_columns(figure, keypoints) -> np.ndarray:
+    """The tangent entries that move some of ``keypoints`` (:meth:`Figure.support_mask
+    <pinrecon.figure.Figure.support_mask>`, the same test as the problem's observable
+    mask): the only columns of their Jacobians that are not zero (a rotation whose axis
+    passes through every point it carries moves none of them). Cached per figure."""
+    key = np.asarray(keypoints, dtype=int).tobytes()
+    per_figure = _COLUMNS.setdefault(figure, {})
+    if key not in per_figure:
+        names = [figure.keypoint_names[k] for k in np.asarray(keypoints, dtype=int)]
+        per_figure[key] = np.flatnonzero(figure.support_mask(names))
+    return per_figure[key]
+
+
+def _rows_of(a: np.ndarray, idx: np.ndarray) -> np.ndarray:
+    """``a[idx]``, as a view when ``idx`` is a long run of consecutive indices."""
+    idx = np.asarray(idx)
+    n = len(idx)
+    if n > 32 and idx[-1] - idx[0] == n - 1 and bool((np.diff(idx) == 1).all()):
+        return a[idx[0] : idx[-1] + 1]
+    return a[idx]

@@ -59,6 +59,14 @@ class JointKeyframes(RowKind):
             cols_all.update(set_cols)
         self.cols = np.array(sorted(cols_all), dtype=int)
         self.frames = np.array([it[0] for it in self.items], dtype=int)
+        # items that set only 1-dof Euclidean joints: difference q - f, derivative 1 (no Pinocchio call)
+        q_of_v = {m.idx_vs[j]: m.idx_qs[j] for j in range(1, m.njoints) if m.nqs[j] == 1 and m.nvs[j] == 1}
+        pos = {col: k for k, col in enumerate(self.cols)}
+        self._euclid = [
+            (np.array([q_of_v[c] for c in sc]), np.array([pos[c] for c in sc]))
+            if trans is None and all(c in q_of_v for c in sc) else None
+            for (_, _, _, sc, trans) in self.items
+        ]
 
     def evaluate(self, state: State, jacobian: bool = True) -> RowBlock:
         m = self.figure.model
@@ -68,6 +76,13 @@ class JointKeyframes(RowKind):
         pos = {col: k for k, col in enumerate(self.cols)}
         for n, (frame, inv_sigma, f, set_cols, trans_only) in enumerate(self.items):
             q = state.Q[frame]
+            fast = self._euclid[n]
+            if fast is not None:
+                qi, idx = fast
+                r[n, idx] = (q[qi] - f[qi]) * inv_sigma
+                if jacobian:
+                    J[n, 0, idx, idx] = inv_sigma
+                continue
             d = pin.difference(m, f, q)
             idx = [pos[k] for k in set_cols]
             r[n, idx] = d[set_cols] * inv_sigma

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .base import RowBlock, RowKind, State
+from .base import RowBlock, RowKind, State, supported_columns
 
 __all__ = ["Measurement2D"]
 
@@ -101,12 +101,10 @@ class Measurement2D(RowKind):
         r = err.reshape(N, 2 * M)
         J = Jg = gcols = None
         if jacobian:
-            Jk = state.jacobians[slots][:, self.keypoints]  # (N, M, 3, nv)
             ortho = hasattr(camera, "scale")  # orthographic: d uv / d X is one constant 2x3 matrix
-            if ortho:
-                J = np.matmul(camera.scale * camera.R[:2], Jk) * scale[..., None, None]
-            else:
-                J = np.matmul(d_uv * scale[..., None, None], Jk)
+            # sqrt(w) d uv / d X  d p_k / d v, projected before forming the keypoint Jacobians
+            cols = self._columns(state.figure)  # structurally non-zero columns only
+            J = state.point_jacobians(slots, self.keypoints, camera.scale * camera.R[:2] if ortho else d_uv, scale, cols)
             J = J.reshape(N, 1, 2 * M, -1)
             parts, cols = [], []
             if state.dpoints_dglobals is not None and len(state.proportion_cols):
@@ -120,9 +118,11 @@ class Measurement2D(RowKind):
             if parts:
                 Jg = (np.concatenate(parts, axis=-1) * scale[..., None, None]).reshape(N, 2 * M, -1)
                 gcols = np.concatenate([np.asarray(c, dtype=int) for c in cols])
-        return RowBlock(
-            self.frames[:, None], r, J, np.arange(state.figure.nv), self.name, cost_value=cost, Jg=Jg, gcols=gcols
-        )
+        cols = self._columns(state.figure) if jacobian else np.arange(state.figure.nv)
+        return RowBlock(self.frames[:, None], r, J, cols, self.name, cost_value=cost, Jg=Jg, gcols=gcols)
+
+    def _columns(self, figure) -> np.ndarray:
+        return supported_columns(figure, self.keypoints)
 
     def reprojection_error_px(self, state: State) -> np.ndarray:
         """(N, M) pixel distance between projection and observation, NaN where missing."""

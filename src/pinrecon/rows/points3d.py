@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .base import RowBlock, RowKind, State
+from .base import RowBlock, RowKind, State, supported_columns
 
 __all__ = ["Points3D"]
 
@@ -51,9 +51,10 @@ class Points3D(RowKind):
         r = ((P - self.p_filled) * self.sqrt_w[..., None]).reshape(N, 3 * M)
         J = Jg = gcols = None
         if jacobian:
-            Jk = state.jacobians[slots][:, self.keypoints] * self.sqrt_w[..., None, None]
-            J = Jk.reshape(N, 1, 3 * M, -1)
+            cols = supported_columns(state.figure, self.keypoints)  # structurally non-zero columns only
+            J = state.point_jacobians(slots, self.keypoints, None, self.sqrt_w, cols).reshape(N, 1, 3 * M, -1)
             if state.dpoints_dglobals is not None and len(state.proportion_cols):
                 dP = state.dpoints_dglobals[slots][:, self.keypoints] * self.sqrt_w[..., None, None]
                 Jg, gcols = dP.reshape(N, 3 * M, -1), state.proportion_cols
-        return RowBlock(self.frames[:, None], r, J, np.arange(state.figure.nv), self.name, Jg=Jg, gcols=gcols)
+        cols = cols if jacobian else np.arange(state.figure.nv)
+        return RowBlock(self.frames[:, None], r, J, cols, self.name, Jg=Jg, gcols=gcols)

@@ -37,7 +37,6 @@ from __future__ import annotations
 
 import numpy as np
 import pinocchio as pin
-from scipy.spatial.transform import Rotation
 
 from .base import RowBlock, RowKind, State
 
@@ -135,16 +134,16 @@ class Smoothing(RowKind):
         T = self.T
         p = Q[:, 0:3]
         r_trans = p[:-2] - 2.0 * p[1:-1] + p[2:]
-        rot = Rotation.from_quat(Q[:, 3:7])
-        rel = rot[:-1].inv() * rot[1:]
-        D = rel.as_rotvec()  # (T-1, 3)
+        quat = Q[:, 3:7] / np.linalg.norm(Q[:, 3:7], axis=1, keepdims=True)
+        rel = _quat_mul(quat[:-1] * [-1.0, -1.0, -1.0, 1.0], quat[1:])  # R_a^T R_b
+        D = _quat_log(rel)  # (T-1, 3)
         r = np.concatenate([r_trans, D[1:] - D[:-1]], axis=1) * self.w_root
         J = None
         if jacobian:
             J1 = _jlog3(D)
-            J0 = -J1 @ np.swapaxes(rel.as_matrix(), 1, 2)
+            J0 = -J1 @ np.swapaxes(_quat_matrix(rel), 1, 2)
             J = np.zeros((T - 2, 3, 6, 6))
-            R = rot.as_matrix()  # (T, 3, 3)
+            R = _quat_matrix(quat)  # (T, 3, 3)
             for i, c in enumerate((1.0, -2.0, 1.0)):
                 J[:, i, 0:3, 0:3] = c * R[i : T - 2 + i]  # dp/dv_local = R
             J[:, 0, 3:6, 3:6] = -J0[:-1]
@@ -152,6 +151,37 @@ class Smoothing(RowKind):
             J[:, 2, 3:6, 3:6] = J1[1:]
             J *= self.w_root[None, None, :, None]
         return RowBlock(self.frames, r, J, np.arange(6), self.name)
+
+
+def _quat_mul(a, b):
+    """Hamilton products of (..., 4) quaternions stored (x, y, z, w)."""
+    ax, ay, az, aw = np.moveaxis(a, -1, 0)
+    bx, by, bz, bw = np.moveaxis(b, -1, 0)
+    return np.stack([aw * bx + ax * bw + ay * bz - az * by, aw * by - ax * bz + ay * bw + az * bx,
+                     aw * bz + ax * by - ay * bx + az * bw, aw * bw - ax * bx - ay * by - az * bz], axis=-1)
+
+
+def _quat_log(q):
+    """Rotation vectors (..., 3) of unit quaternions (x, y, z, w), angles in [0, pi]
+    (``Rotation.as_rotvec``'s convention and small-angle series)."""
+    q = np.where(q[..., 3:4] < 0.0, -q, q)
+    v = q[..., :3]
+    angle = 2.0 * np.arctan2(np.linalg.norm(v, axis=-1), q[..., 3])
+    small = angle <= 1e-3
+    a2 = angle * angle
+    scale = np.where(small, 2.0 + a2 / 12.0 + 7.0 * a2 * a2 / 2880.0,
+                     angle / np.sin(np.where(small, 1.0, angle) / 2.0))
+    return scale[..., None] * v
+
+
+def _quat_matrix(q):
+    """Rotation matrices (..., 3, 3) of unit quaternions (x, y, z, w)."""
+    x, y, z, w = np.moveaxis(q, -1, 0)
+    return np.stack([
+        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], -1),
+        np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], -1),
+        np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], -1),
+    ], -2)
 
 
 def _skew(w):

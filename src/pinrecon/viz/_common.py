@@ -69,6 +69,7 @@ class Motion:
     keypoints3d: np.ndarray
     fps: float
     label: str = ""
+    feet: object = None  # a pinrecon.contact.FootContact (floor and contacts), when the result has one
 
     def frame_at(self, t: float) -> int:
         """Index of the frame nearest to time ``t`` (seconds)."""
@@ -106,7 +107,10 @@ def as_motion(
     if P is None:
         P = fig.keypoints(q)
     fps = float(getattr(obj, "fps", 0) or (1.0 / np.diff(times).mean() if len(times) > 1 else 1.0))
-    return Motion(fig, np.asarray(q, float), times, np.asarray(P, float), fps, label)
+    from ..contact import FootContact
+
+    feet = FootContact.from_extras(getattr(obj, "extras", None) or {})
+    return Motion(fig, np.asarray(q, float), times, np.asarray(P, float), fps, label, feet)
 
 
 def check_frames(frames, n: int, field: str = "frames") -> np.ndarray:
@@ -338,6 +342,72 @@ def view_unit(camera) -> str:
     if isinstance(camera, Orthographic) and camera.scale == 1.0:
         return "m"
     return "px"
+
+
+FLOOR_COLOR = "#8c6d31"
+CONTACT_COLOR = "#2ca02c"
+
+
+def legend_handles(truth: bool = False, floor: bool = False, contact: bool = False) -> list:
+    """Proxy artists naming the colours: left side, right side, centre (and the truth,
+    the floor and the contacts when drawn)."""
+    from matplotlib.lines import Line2D
+
+    h = [Line2D([], [], color=SIDE_COLORS["L"], lw=2, label="left"),
+         Line2D([], [], color=SIDE_COLORS["R"], lw=2, label="right"),
+         Line2D([], [], color=SIDE_COLORS["C"], lw=2, label="centre")]
+    if truth:
+        h.append(Line2D([], [], color=TRUTH_COLOR, lw=3, label="ground truth"))
+    if floor:
+        h.append(Line2D([], [], color=FLOOR_COLOR, lw=2, label="floor"))
+    if contact:
+        h.append(Line2D([], [], color=CONTACT_COLOR, marker="s", ls="", ms=5, label="foot in contact"))
+    return h
+
+
+def height_ticks(ax, floor=None, up=None):
+    """Label the (inverted, y-down) vertical axis of a metric view with heights: ``-v``,
+    above the floor when ``floor`` (a :class:`pinrecon.contact.Floor`) is given and its
+    normal is the view's ``up``; ticks at round heights; the drawn data do not change.
+    Call it after the axis limits are set."""
+    from matplotlib.ticker import MaxNLocator
+
+    off = 0.0
+    if floor is not None and up is not None and abs(float(np.dot(floor.n, up))) > 0.99:
+        off = float(floor.offset_m) * float(np.sign(np.dot(floor.n, up)))
+    v0, v1 = ax.get_ylim()
+    lo, hi = sorted((-v0 - off, -v1 - off))
+    heights = [h for h in MaxNLocator(5).tick_values(lo, hi) if lo <= h <= hi]
+    ax.set_yticks([-(h + off) for h in heights], [f"{h:.3g}" for h in heights])
+    ax.set_ylim(v0, v1)
+    return "height above the floor" if floor is not None else "height"
+
+
+def floor_segment(view, floor, centre_world, half_m: float) -> np.ndarray:
+    """(2, 2) image points of the floor's line under ``centre_world``, along the view's
+    horizontal direction, ``half_m`` metres each side."""
+    n = floor.n
+    base = np.asarray(centre_world, float) - floor.height(centre_world) * n
+    right = np.asarray(view.R, float)[0]
+    right = right - (right @ n) * n
+    norm = np.linalg.norm(right)
+    right = right / norm if norm > 1e-9 else np.cross(n, np.asarray(view.R, float)[2])
+    return view.project(np.stack([base - half_m * right, base + half_m * right]))
+
+
+def draw_floor(ax, seg_uv, prefix: str = ""):
+    """The floor's line (gid ``prefix + "floor"``)."""
+    (line,) = ax.plot(seg_uv[:, 0], seg_uv[:, 1], "-", color=FLOOR_COLOR, lw=2.0, zorder=0.5)
+    line.set_gid(prefix + "floor")
+    return line
+
+
+def draw_contacts(ax, uv, prefix: str = ""):
+    """Squares on the foot points in contact, ``uv`` (M, 2) (gid ``prefix + "contacts"``)."""
+    uv = np.asarray(uv, float).reshape(-1, 2)
+    (pts,) = ax.plot(uv[:, 0], uv[:, 1], "s", ms=5, mfc="none", mec=CONTACT_COLOR, mew=1.5, zorder=6)
+    pts.set_gid(prefix + "contacts")
+    return pts
 
 
 def square_limits(ax, center, half):

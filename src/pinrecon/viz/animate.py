@@ -15,9 +15,15 @@ from ..io.atomic import atomic_path
 from ._common import (
     MissingDependencyError,
     as_motion,
+    camera_up,
     check_frames,
     default_camera,
+    draw_contacts,
+    draw_floor,
     draw_stick,
+    floor_segment,
+    height_ticks,
+    legend_handles,
     new_figure,
     require_matplotlib,
     second_view_camera,
@@ -63,6 +69,10 @@ def animate(
     Returns the path written. Bones follow the figure's kinematic tree
     (:attr:`pinrecon.Figure.parents_of_keypoints`, joined through joint origins where it
     leaves keypoints unconnected). The views keep fixed limits, so the figure travels.
+    The reconstruction is drawn over the truth; a legend names the colours (left blue,
+    right red); the second view's vertical axis reads heights, positive up. A result with
+    a floor and contacts (``reconstruct(..., floor=...)``) also shows the floor's line and
+    squares on the foot points in contact.
     """
     require_matplotlib()
     from matplotlib import animation as mpl_animation
@@ -104,6 +114,9 @@ def animate(
         tsk = skeleton(tmotion.figure)
         TP = skeleton_points(tmotion, tsk, [tmotion.frame_at(motion.times[f]) for f in idx])
 
+    feet = motion.feet
+    fidx = motion.figure.keypoint_index(feet.names) if feet is not None else None
+    up_w = camera_up(cam) if up is None else np.asarray(up, float) / np.linalg.norm(up)
     fig = new_figure(size_in, dpi=dpi)
     axes = fig.subplots(1, 2)
     artists = []
@@ -114,29 +127,41 @@ def animate(
         lo, hi = allp.min(axis=0), allp.max(axis=0)
         square_limits(ax, 0.5 * (lo + hi), 0.53 * float(np.max(hi - lo)) + 1e-9)
         unit = view_unit(view)
+        if view is cam2 and unit == "m":
+            title = f"{title}, {height_ticks(ax, feet.floor if feet else None, up_w)}"
         ax.set_title(f"{title} ({unit})", fontsize=9)
         ax.tick_params(labelsize=6)
         ax.grid(True, lw=0.3, alpha=0.5)
-        t_art = None
+        t_art = f_art = c_art = None
         if tuv is not None:
             t_art = draw_stick(ax, tuv[0], tsk, truth=True, prefix="truth_")
-        artists.append((uv, tuv, draw_stick(ax, uv[0], sk), t_art))
+        if feet is not None:
+            centre = motion.keypoints3d[idx].reshape(-1, 3).mean(axis=0)
+            f_art = draw_floor(ax, floor_segment(view, feet.floor, centre, 0.6 * _extent_m(motion, idx) + 1.0))
+            c_art = draw_contacts(ax, np.zeros((0, 2)))
+        artists.append((view, uv, tuv, draw_stick(ax, uv[0], sk), t_art, c_art))
     stamp = fig.suptitle(f"frame {idx[-1]}   t = {motion.times[idx[-1]]:.2f} s", fontsize=9)
+    fig.legend(handles=legend_handles(TP is not None, feet is not None, feet is not None), loc="outside lower center",
+               ncols=6, fontsize=7, frameon=False)
     fig.canvas.draw()  # lay out once, then freeze: no jitter, faster frames
     fig.set_layout_engine("none")
 
     def update(k):
-        for uv, tuv, (pts, bones), t_art in artists:
+        for view, uv, tuv, (pts, bones), t_art, c_art in artists:
             pts.set_data(uv[k, : sk.K, 0], uv[k, : sk.K, 1])
             bones.set_segments([uv[k, [a, b]] for a, b in sk.edges])
             if t_art is not None:
                 t_art[0].set_data(tuv[k, : tsk.K, 0], tuv[k, : tsk.K, 1])
                 t_art[1].set_segments([tuv[k, [a, b]] for a, b in tsk.edges])
+            if c_art is not None:
+                on = view.project(motion.keypoints3d[idx[k], fidx[feet.contact[idx[k]]]]).reshape(-1, 2)
+                c_art.set_data(on[:, 0], on[:, 1])
         stamp.set_text(f"frame {idx[k]}   t = {motion.times[idx[k]]:.2f} s")
 
     animated = [stamp]
-    for _, _, arts, t_art in artists:
-        animated += list(arts) + (list(t_art) if t_art is not None else [])
+    for _, _, _, arts, t_art, c_art in artists:
+        animated += list(arts) + (list(t_art) if t_art is not None else []) + ([c_art] if c_art is not None else [])
+    animated.sort(key=lambda a: a.get_zorder())  # blitting draws in this order: the truth under the reconstruction
     with atomic_path(out_path) as tmp:
         if suffix == ".gif":
             _write_gif(tmp, _blit_frames(fig, animated, update, len(idx)), fps)
@@ -149,6 +174,12 @@ def animate(
                     update(k)
                     writer.grab_frame()
     return out_path
+
+
+def _extent_m(motion, idx) -> float:
+    """The largest distance the keypoints spread over the rendered frames, metres."""
+    P = motion.keypoints3d[idx].reshape(-1, 3)
+    return float(np.max(P.max(axis=0) - P.min(axis=0)))
 
 
 def _blit_frames(fig, animated, update, n):

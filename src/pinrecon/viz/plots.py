@@ -9,13 +9,16 @@ Artists carry gids so that tests and users can find the data drawn: joint-angle 
 are Line2D with gid ``"reconstruction"`` / ``"truth"``; stick figures have a Line2D of
 keypoints (gid ``"keypoints"``, ``"truth_keypoints"``) and a LineCollection of bones
 (``"bones"``, ``"truth_bones"``); the reprojection plot has ``"tracks"``,
-``"reprojection"`` and ``"residuals"``.
+``"reprojection"`` and ``"residuals"``; the error plot ``"reprojection_error"`` (all
+cameras) and ``"reprojection_error:<camera name>"`` (each camera of a several-camera
+result).
 """
 
 from __future__ import annotations
 
 import math
 import os
+import re
 import warnings
 from collections.abc import Sequence
 from pathlib import Path
@@ -25,12 +28,18 @@ import numpy as np
 from ..errors import InputError, UnknownNameError
 from ._common import (
     as_motion,
+    camera_up,
     check_frames,
     default_camera,
+    draw_contacts,
+    draw_floor,
     draw_stick,
     even_frames,
     find_series,
+    floor_segment,
+    height_ticks,
     joint_series,
+    legend_handles,
     new_figure,
     save_figure,
     second_view_camera,
@@ -134,9 +143,32 @@ def plot_joint_angles(
     return fig
 
 
+def _camera_index(result, camera) -> int:
+    """The index in ``result.cameras`` of a camera given by name or index."""
+    names = list(getattr(result, "camera_names", None) or [])
+    if isinstance(camera, str):
+        if camera not in names:
+            raise UnknownNameError("camera", [camera], names, field="camera")
+        return names.index(camera)
+    i = int(camera)
+    if not 0 <= i < len(names):
+        raise InputError(f"camera index {i} is out of range: the result has {len(names)} cameras", field="camera")
+    return i
+
+
 def _resolve_camera(result, camera):
-    cam = camera if camera is not None else getattr(result, "camera", None)
-    return cam
+    """``camera`` itself, or the result's camera with that name or index, or the
+    result's (first) camera when None."""
+    if camera is None:
+        return getattr(result, "camera", None)
+    if isinstance(camera, (str, int, np.integer)):
+        return result.cameras[_camera_index(result, camera)]
+    return camera
+
+
+def camera_file_stem(name: str) -> str:
+    """A camera name made safe for a file name."""
+    return re.sub(r"[^A-Za-z0-9_.-]+", "_", str(name)).strip("._") or "camera"
 
 
 def plot_stick_strip(
@@ -164,6 +196,11 @@ def plot_stick_strip(
     truth : ground truth (Result, BvhMotion or path) drawn in grey under the
         reconstruction, at the frame nearest in time.
     up : world up axis for the turn (default: the coordinate axis nearest the camera's up).
+
+    A legend names the colours (left blue, right red). Row 2's vertical axis is labelled
+    with heights (above the floor when the result has one), positive up. A result with a
+    floor and contacts (``reconstruct(..., floor=...)``) also gets the floor's line (gid
+    ``"floor"``) and squares on the foot points in contact (gid ``"contacts"``).
     """
     motion = as_motion(result)
     T = len(motion.times)
@@ -179,8 +216,10 @@ def plot_stick_strip(
         tframes = [tmotion.frame_at(motion.times[f]) for f in frames]
         TP = skeleton_points(tmotion, tsk, tframes)
     n = len(frames)
-    fig = new_figure((1.9 * n + 0.6, 4.4))
+    feet = motion.feet
+    fig = new_figure((1.9 * n + 0.6, 4.8))
     axes = np.atleast_2d(fig.subplots(2, n, squeeze=False))
+    up_w = camera_up(cam) if up is None else np.asarray(up, float) / np.linalg.norm(up)
     for row, view in enumerate((cam, cam2)):
         uv = view.project(P)
         tuv = view.project(TP) if TP is not None else None
@@ -193,15 +232,25 @@ def plot_stick_strip(
             if tuv is not None:
                 draw_stick(ax, tuv[k], tsk, truth=True, label="ground truth", prefix="truth_")
             draw_stick(ax, uv[k], sk, label="reconstruction")
+            if feet is not None:
+                fidx = motion.figure.keypoint_index(feet.names)
+                centre = motion.keypoints3d[f].mean(axis=0)
+                draw_floor(ax, floor_segment(view, feet.floor, centre, 1.0))
+                on = feet.contact[f]
+                draw_contacts(ax, view.project(motion.keypoints3d[f, fidx[on]]))
             square_limits(ax, 0.5 * (lo[k] + hi[k]), half)
             ax.tick_params(labelsize=6)
             if row == 0:
                 ax.set_title(f"frame {f}, t = {motion.times[f]:.2f} s", fontsize=8)
             if k == 0:
                 what = "camera view" if row == 0 else "second view"
+                if row == 1 and unit == "m":
+                    what = f"second view, {height_ticks(ax, feet.floor if feet else None, up_w)}"
                 ax.set_ylabel(f"{what} ({unit})", fontsize=8)
-    if truth is not None:
-        axes[0, 0].legend(fontsize=6, loc="lower left")
+            elif row == 1 and unit == "m":
+                height_ticks(ax, feet.floor if feet else None, up_w)
+    fig.legend(handles=legend_handles(truth is not None, feet is not None, feet is not None), loc="outside lower center",
+               ncols=6, fontsize=7, frameon=False)
     if out is not None:
         save_figure(fig, out)
     return fig
@@ -223,17 +272,24 @@ def plot_reprojection(
     tracks : :class:`pinrecon.Tracks` or a path :func:`pinrecon.load_tracks` reads.
     frames : track frame indices (default: 4 evenly spaced); the reconstruction frame at
         the same time is used.
-    camera : overrides ``result.camera``.
+    camera : overrides ``result.camera``: a camera, or the name or index of one of the
+        result's cameras (``result.camera_names``); ``tracks`` are then that camera's.
 
     Tracked points are crosses joined by the figure's keypoint bones
     (:attr:`pinrecon.Figure.parents_of_keypoints`); the reprojection is the full stick
     figure (gid ``"reprojection"`` holds ``camera.project`` of the keypoints); thin lines
     join each tracked point to its reprojection. Image y points down.
     """
+    from ..result import load_result
     from ..tracks import Tracks, load_tracks
 
+    if isinstance(result, (str, os.PathLike)) and Path(result).suffix.lower() != ".bvh":
+        result = load_result(result)
     motion = as_motion(result)
     cam = _resolve_camera(result, camera)
+    who = ""
+    if isinstance(camera, (str, int, np.integer)) and len(getattr(result, "cameras", ())) > 1:
+        who = f"{result.camera_names[_camera_index(result, camera)]}: "
     if cam is None:
         raise InputError("the result has no camera; pass camera=...", field="camera")
     if not isinstance(tracks, Tracks):
@@ -280,7 +336,7 @@ def plot_reprojection(
         ax.add_collection(rl)
         err = np.linalg.norm(obs[ok] - uv[kp_idx[ok]], axis=1)
         err_txt = f", {err.mean():.1f} px" if err.size else ""
-        ax.set_title(f"frame {f} (t = {tracks.times[f]:.2f} s){err_txt}", fontsize=8)
+        ax.set_title(f"{who}frame {f} (t = {tracks.times[f]:.2f} s){err_txt}", fontsize=8)
         allp = np.concatenate([uv, obs[ok]])
         lo, hi = allp.min(axis=0), allp.max(axis=0)
         square_limits(ax, 0.5 * (lo + hi), 0.55 * float(np.max(hi - lo)) + 1e-9)
@@ -295,12 +351,23 @@ def plot_reprojection(
 
 
 def plot_reprojection_error(result, out: str | os.PathLike | None = None):
-    """Mean reprojection error per frame (pixels) of a Result, observed frames only."""
+    """Mean reprojection error per frame (pixels) of a Result, observed frames only; with
+    several cameras, one thin line per camera under the mean over all of them."""
     err = np.asarray(result.reprojection_error_px, float)
     fig = new_figure((6.0, 2.4))
     ax = fig.subplots()
-    (line,) = ax.plot(result.times, err, "-", color="#1f77b4", lw=1.0)
+    per = getattr(result, "reprojection_error_px_per_camera", None)
+    names = list(getattr(result, "camera_names", None) or [])
+    several = per is not None and len(names) > 1 and np.shape(per) == (len(names), len(err))
+    (line,) = ax.plot(result.times, err, "-", color="#1f77b4", lw=1.4 if several else 1.0,
+                      label="all cameras" if several else None)
     line.set_gid("reprojection_error")
+    if several:
+        for name, e in zip(names, np.asarray(per, float)):
+            ok = np.isfinite(e)
+            (lc,) = ax.plot(result.times[ok], e[ok], "-", lw=0.7, alpha=0.8, label=f"{name}")
+            lc.set_gid(f"reprojection_error:{name}")
+        ax.legend(fontsize=6, loc="upper right")
     ax.set_xlabel("time (s)", fontsize=8)
     ax.set_ylabel("reprojection error (px)", fontsize=8)
     finite = err[np.isfinite(err)]
@@ -322,11 +389,14 @@ def plot_result(
     truth_length_scale: float | None = None,
     truth_skip_frames: int = 0,
     joints=None,
+    tracks_fps: float | None = None,
 ) -> list[Path]:
     """Write the standard pictures of a result (the ``pinrecon plot`` command).
 
     Files in ``out_dir`` (created): ``joint_angles.png``, ``stick_strip.png``,
-    ``reprojection.png`` (with ``tracks`` and a camera), ``reprojection_error.png``
+    ``reprojection.png`` (with ``tracks`` and a camera; with a list of tracks, one per
+    camera of a several-camera result, ``reprojection_<camera name>.png`` each),
+    ``reprojection_error.png``
     (when the result has finite errors) and ``animation.gif`` (unless
     ``animation=False``).
 
@@ -337,18 +407,26 @@ def plot_result(
         is read with ``truth_length_scale`` (metres per file unit), by default the
         length scale of the result's figure when that came from a BVH, else 1.0; and
         ``truth_skip_frames`` frames are dropped at its start (1 for CMU's T-pose).
-    tracks : the 2D tracks (path or :class:`pinrecon.Tracks`).
+    tracks : the 2D tracks (path or :class:`pinrecon.Tracks`), or a list of them paired in
+        order with ``result.cameras``.
     joints : joints for ``joint_angles.png`` (default: the six that move most).
+    tracks_fps : frame rate of tracks files that carry none (an OpenPose folder, COCO JSON).
 
-    Returns the list of files written.
+    Returns the list of files written. Every input is read before anything is drawn, and
+    when a picture fails the files this call wrote are removed again: a failed call
+    leaves no half set of pictures behind.
     """
     from ..result import load_result
+    from ..tracks import Tracks, load_tracks
 
     result = result_path_or_result
     if isinstance(result, (str, os.PathLike)):
         result = load_result(result)
+    if isinstance(tracks, (list, tuple)):
+        tracks = [t if isinstance(t, Tracks) else load_tracks(t, fps=tracks_fps) for t in tracks]
+    elif tracks is not None and not isinstance(tracks, Tracks):
+        tracks = load_tracks(tracks, fps=tracks_fps)
     out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
     tmotion = None
     if truth is not None:
         scale = truth_length_scale
@@ -358,11 +436,24 @@ def plot_result(
         tmotion = as_motion(
             truth, "ground truth", length_scale=scale, skip_frames=truth_skip_frames
         )
-    written = [
-        save_figure(plot_joint_angles(result, joints, tmotion), out_dir / "joint_angles.png"),
-        save_figure(plot_stick_strip(result, truth=tmotion), out_dir / "stick_strip.png"),
-    ]
-    if tracks is not None:
+    out_dir.mkdir(parents=True, exist_ok=True)
+    written: list[Path] = []
+    try:
+        _draw_all(result, out_dir, tmotion, tracks, joints, animation, written)
+    except BaseException:
+        for f in written:
+            Path(f).unlink(missing_ok=True)
+        raise
+    return written
+
+
+def _draw_all(result, out_dir: Path, tmotion, tracks, joints, animation: bool, written: list) -> None:
+    """The pictures of :func:`plot_result`; each path is appended to ``written`` once saved."""
+    written.append(save_figure(plot_joint_angles(result, joints, tmotion), out_dir / "joint_angles.png"))
+    written.append(save_figure(plot_stick_strip(result, truth=tmotion), out_dir / "stick_strip.png"))
+    if isinstance(tracks, (list, tuple)):
+        _per_camera_reprojection(result, tracks, out_dir, written)
+    elif tracks is not None:
         if getattr(result, "camera", None) is None:
             warnings.warn("the result has no camera: reprojection.png is not drawn", stacklevel=2)
         else:
@@ -376,5 +467,23 @@ def plot_result(
         from .animate import animate
 
         written.append(animate(result, out_dir / "animation.gif", truth=tmotion))
-    return written
 
+
+def _per_camera_reprojection(result, tracks: Sequence, out_dir: Path, written: list | None = None) -> list[Path]:
+    """``reprojection_<name>.png`` for each of the result's cameras and its tracks."""
+    cams = list(getattr(result, "cameras", None) or [])
+    if len(tracks) != len(cams):
+        raise InputError(
+            f"{len(tracks)} tracks for a result with {len(cams)} cameras "
+            f"({', '.join(getattr(result, 'camera_names', []))}): give one tracks per camera, in order",
+            field="tracks",
+        )
+    written = [] if written is None else written
+    stems = set()
+    for i, (name, trk) in enumerate(zip(result.camera_names, tracks)):
+        stem = camera_file_stem(name)
+        stem = stem if stem not in stems else f"{stem}_{i + 1}"
+        stems.add(stem)
+        fig = plot_reprojection(result, trk, camera=i)
+        written.append(save_figure(fig, out_dir / f"reprojection_{stem}.png"))
+    return written

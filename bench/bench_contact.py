@@ -1,0 +1,137 @@
+"""Feet on the ground: foot skating, penetration and floating, with and without the contact rows.
+
+The bundled CMU walk, run and dance (05_11, sideways steps and a pirouette), taken at 60 fps
+(every other frame), are seen by an orthographic camera 45 degrees from side-on with 1 px
+noise, in two settings:
+
+* **lab**: the figure built from the clip's own skeleton, its 22 body points tracked,
+  3D point keyframes (2 cm noise) every 0.25 s; foot points: both ankles (``*Foot``),
+  toe joints and toe ends.
+* **generic figure**: ``Figure.human()`` (example-robot-data, other proportions), 12
+  COCO-17 body points (shoulders, elbows, wrists, hips, knees, ankles) tracked at the
+  clip's joints, 3D keyframes of those 12 points on the first and last frame only; foot
+  points: the ankles.
+
+Each is reconstructed without (``reconstruct``) and with the floor and contact rows
+(``reconstruct(..., floor="auto", contact="auto")``: floor and contacts estimated from
+the motion itself). Scored against the clip:
+
+* the true floor and the planted foot points' true contact frames are taken from the clip
+  itself (:func:`pinrecon.contact.estimate_floor` and :func:`~pinrecon.contact.detect_contacts`
+  on the clip's own foot points: within 3 cm of the point's lowest level and slower than
+  15 cm/s, smoothed over 50 ms, until above 5 cm or faster than 25 cm/s);
+* skating: mean horizontal speed of a reconstructed foot point over the true contact frames;
+* penetration: depth of a reconstructed foot point below the lowest height the true point
+  ever reaches above the true floor, mean over all frames and foot points and largest;
+* floating: height of a reconstructed foot point above the true one during true contacts;
+* MPJPE over the tracked points.
+
+    OPENBLAS_NUM_THREADS=1 python bench/bench_contact.py [--clips walk run spin] [--cases lab generic]
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+import pinrecon as pr
+from pinrecon.contact import ContactSettings, detect_contacts, estimate_floor, foot_keypoints, foot_metrics
+from pinrecon.synthetic import body_keypoints, bundled_motion, point_keyframes, project_tracks, side_camera
+
+#: COCO-17 body points of Figure.human() -> CMU BVH joints
+COCO12_FROM_CMU = {
+    "left_shoulder": "LeftArm", "right_shoulder": "RightArm", "left_elbow": "LeftForeArm",
+    "right_elbow": "RightForeArm", "left_wrist": "LeftHand", "right_wrist": "RightHand",
+    "left_hip": "LeftUpLeg", "right_hip": "RightUpLeg", "left_knee": "LeftLeg", "right_knee": "RightLeg",
+    "left_ankle": "LeftFoot", "right_ankle": "RightFoot",
+}
+
+
+#: contact detection on the clip itself (the true contact frames)
+TRUTH_SETTINGS = ContactSettings(speed_on_mps=0.15, speed_off_mps=0.25, smooth_s=0.05)
+
+
+def truth_feet(fig, q, fps, names):
+    """The clip's own floor, contacts, foot heights (T, F) and clearances (F,)."""
+    P = fig.keypoints(q)
+    feet = P[:, fig.keypoint_index(names)]
+    floor = estimate_floor(feet, p_upper=q[:, :3], fps=fps)
+    contact = detect_contacts(feet, floor, fps, TRUTH_SETTINGS)
+    h = floor.height(feet)
+    return floor, contact, h, h.min(axis=0)
+
+
+def score(P_feet, truth, fps):
+    floor, contact, h_true, clear = truth
+    m = foot_metrics(P_feet, floor, contact, fps, clearance_m=clear, contact_height_m=h_true)
+    return m
+
+
+#: frames of the 120 fps clips kept (2: 60 fps)
+STEP = 2
+
+
+def setting(clip, case):
+    """(figure, tracks, camera, keyframes, truth points (T, N, 3), their names, truth foot
+    data, foot point names on the reconstructed figure)."""
+    cfig, q, fps = bundled_motion(clip)
+    q, fps = q[::STEP], fps / STEP
+    cam = side_camera(q, 45.0)
+    if case == "lab":
+        names = body_keypoints(cfig)
+        tracks = project_tracks(cfig, q, cam, names, fps=fps, noise_px=1.0, seed=1)
+        keys = point_keyframes(cfig, q, range(0, len(q), int(0.25 * fps)), names, sigma_m=0.02, seed=2)
+        feet = foot_keypoints(cfig, names)
+        truth_pts = cfig.keypoints(q)[:, cfig.keypoint_index(names)]
+        return cfig, tracks, cam, keys, truth_pts, names, truth_feet(cfig, q, fps, feet), feet, fps
+    fig = pr.Figure.human()
+    names = list(COCO12_FROM_CMU)
+    cmu = [COCO12_FROM_CMU[n] for n in names]
+    truth_pts = cfig.keypoints(q)[:, cfig.keypoint_index(cmu)]
+    rng = np.random.default_rng(3)
+    uv = cam.project(truth_pts) + rng.normal(0.0, 1.0, truth_pts.shape[:2] + (2,))
+    tracks = pr.Tracks(uv, names, fps)
+    noisy = truth_pts + rng.normal(0.0, 0.02, truth_pts.shape)
+    keys = pr.tracks.keyframes_from_points([0, len(q) - 1], noisy, names, 0.02)
+    feet = ["left_ankle", "right_ankle"]
+    return fig, tracks, cam, keys, truth_pts, names, truth_feet(cfig, q, fps, ["LeftFoot", "RightFoot"]), feet, fps
+
+
+def run(clip, case, rows):
+    fig, tracks, cam, keys, truth_pts, names, truth, feet, fps = setting(clip, case)
+    idx = fig.keypoint_index(names)
+    fidx = fig.keypoint_index(feet)
+    for label, kw in (("without", {}), ("with floor + contact rows", {"floor": "auto", "contact": "auto"})):
+        t0 = time.perf_counter()
+        res = pr.reconstruct(fig, tracks, cam, keys, **kw)
+        dt = time.perf_counter() - t0
+        P = res.keypoints3d
+        mpjpe = 1000 * np.linalg.norm(P[:, idx] - truth_pts, axis=-1).mean()
+        m = score(P[:, fidx], truth, fps)
+        rows.append((clip, case, label, m, mpjpe, int(truth[1].sum()), dt))
+        print(f"  {clip:5s} {case:8s} {label:26s} skating {100 * m['skating_mps']:6.2f} cm/s  "
+              f"penetration {1000 * m['penetration_m']:5.1f} / {1000 * m['penetration_max_m']:5.1f} mm  "
+              f"floating {1000 * m['floating_m']:5.1f} mm  MPJPE {mpjpe:6.1f} mm  {dt:5.1f} s", flush=True)
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--clips", nargs="*", default=["walk", "run", "spin"])
+    ap.add_argument("--cases", nargs="*", default=["lab", "generic"])
+    a = ap.parse_args()
+    rows = []
+    for case in a.cases:
+        for clip in a.clips:
+            run(clip, case, rows)
+    print("\n| clip | case | rows | skating (cm/s) | penetration mean / max (mm) | floating (mm) | MPJPE (mm) | "
+          "true contacts | time (s) |")
+    print("|---|---|---|---:|---:|---:|---:|---:|---:|")
+    for clip, case, label, m, mpjpe, nc, dt in rows:
+        print(f"| {clip} | {case} | {label} | {100 * m['skating_mps']:.2f} | {1000 * m['penetration_m']:.1f} / "
+              f"{1000 * m['penetration_max_m']:.1f} | {1000 * m['floating_m']:.1f} | {mpjpe:.1f} | {nc} | {dt:.1f} |")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,618 @@
+"""Feet on the ground: the floor, foot contacts, their rows, and the foot metrics.
+
+* :class:`Floor` - the plane ``n . p = d`` (unit up normal ``n``, world axes; ``d`` in
+  metres); given (``"y=0"``, ``"z=0"``, ``"nx,ny,nz,d"``) or :func:`estimate_floor`:
+  fitted under the lowest foot points over time, robust to jumps and to frames where no
+  foot is down.
+* :func:`foot_keypoints` - the figure's foot points (ankle, heel, toe, foot).
+* :func:`detect_contacts` - contact per frame and foot point from low height and low
+  speed, with hysteresis.
+* :func:`contact_rows` - the rows of :mod:`pinrecon.rows.contact` (zero velocity,
+  height on the floor) and :mod:`pinrecon.rows.floor` (non-penetration).
+* :func:`solve_on_the_floor` - solve, detect, add the rows, re-solve warm, re-estimate
+  the floor and contacts between solves (the floor is fixed within a solve).
+* :func:`foot_metrics` - foot skating (mean horizontal speed of a foot point in
+  contact), penetration depth and floating height.
+
+Every height is measured along the floor normal from the floor plane. A foot keypoint
+is a joint centre, not the sole: each has its own **contact height** (its height when
+its part of the foot rests on the floor; an ankle ~8 cm, a toe end ~2 cm) and its own
+**clearance** (the lowest it goes; it may not go lower).
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, fields
+
+import numpy as np
+
+from .errors import InputError, UnknownNameError
+from .rows.contact import ContactHeight, ContactVelocity
+from .rows.floor import FloorPenetration
+from .solver import solve
+
+__all__ = [
+    "Floor",
+    "ContactSettings",
+    "FootContact",
+    "foot_keypoints",
+    "sole_offset",
+    "body_up",
+    "estimate_floor",
+    "detect_contacts",
+    "contact_heights",
+    "contact_rows",
+    "ground_contacts",
+    "solve_on_the_floor",
+    "foot_metrics",
+    "contacts_from_spec",
+    "FOOT_EXTRAS",
+]
+
+#: a keypoint whose name contains one of these (case-insensitive) is a foot point
+FOOT_PATTERN = re.compile(r"(?i)ankle|heel|toe|foot")
+
+_AXES = {"x": 0, "y": 1, "z": 2}
+
+#: the result NPZ entries of a :class:`FootContact` (:meth:`FootContact.to_extras`)
+FOOT_EXTRAS = ("floor", "foot_names", "foot_contact", "foot_contact_height_m", "foot_clearance_m")
+
+
+# ----------------------------------------------------------------------------- floor
+@dataclass(frozen=True)
+class Floor:
+    """The floor plane ``normal . p = offset_m`` (``normal`` a unit vector pointing up)."""
+
+    normal: tuple[float, float, float] = (0.0, 1.0, 0.0)
+    offset_m: float = 0.0
+
+    def __post_init__(self):
+        n = np.asarray(self.normal, float).reshape(-1)
+        if n.shape != (3,) or not np.all(np.isfinite(n)) or np.linalg.norm(n) < 1e-12:
+            raise InputError(f"the floor normal must be a non-zero 3-vector, got {self.normal!r}", field="floor")
+        if not np.isfinite(self.offset_m):
+            raise InputError(f"the floor height must be finite, got {self.offset_m!r}", field="floor")
+        object.__setattr__(self, "normal", tuple(float(x) for x in n / np.linalg.norm(n)))
+        object.__setattr__(self, "offset_m", float(self.offset_m))
+
+    @property
+    def n(self) -> np.ndarray:
+        return np.array(self.normal)
+
+    def height(self, p_world) -> np.ndarray:
+        """Height above the floor (metres, along the normal) of points (..., 3)."""
+        return np.asarray(p_world, float) @ self.n - self.offset_m
+
+    def horizontal(self, v_world) -> np.ndarray:
+        """The component of vectors (..., 3) parallel to the floor."""
+        v = np.asarray(v_world, float)
+        return v - (v @ self.n)[..., None] * self.n
+
+    def as_array(self) -> np.ndarray:
+        """``[nx, ny, nz, offset_m]`` (the NPZ ``floor`` entry)."""
+        return np.array([*self.normal, self.offset_m])
+
+    @classmethod
+    def from_array(cls, a) -> Floor:
+        a = np.asarray(a, float).reshape(-1)
+        if a.shape != (4,):
+            raise InputError(f"a floor is 4 numbers nx, ny, nz, offset, got {a.tolist()}", field="floor")
+        return cls(tuple(a[:3]), float(a[3]))
+
+    @classmethod
+    def parse(cls, spec: str) -> Floor:
+        """``"y=0"`` / ``"z=0.05"`` / ``"-z=1"`` (the plane ``axis = value``, up along
+        ``+axis``, or ``-axis`` with a minus sign), or ``"nx,ny,nz,d"`` (the plane
+        ``n . p = d`` with ``n`` normalised, ``d`` in metres along it)."""
+        s = str(spec).strip().replace(" ", "")
+        m = re.fullmatch(r"([+-]?)([xyzXYZ])=([-+0-9.eE]+)", s)
+        try:
+            if m:
+                sign = -1.0 if m.group(1) == "-" else 1.0
+                n = np.zeros(3)
+                n[_AXES[m.group(2).lower()]] = sign
+                return cls(tuple(n), sign * float(m.group(3)))
+            parts = [float(x) for x in s.split(",")]
+        except ValueError:
+            parts = []
+        if len(parts) != 4:
+            raise InputError(
+                f"a floor is 'auto', 'y=0' (or x/z, '-z=1' for a floor whose up is -z), or 'nx,ny,nz,d', got {spec!r}",
+                field="floor",
+            )
+        n = np.asarray(parts[:3])
+        norm = np.linalg.norm(n)
+        if not norm > 0:
+            raise InputError(f"the floor normal must be non-zero, got {spec!r}", field="floor")
+        return cls(tuple(n / norm), parts[3] / norm)
+
+
+def as_floor(floor) -> Floor | str:
+    """A :class:`Floor`, ``"auto"``, or an error: accepts a Floor, a spec string, or 4 numbers."""
+    if isinstance(floor, Floor):
+        return floor
+    if isinstance(floor, str):
+        return "auto" if floor.strip().lower() == "auto" else Floor.parse(floor)
+    try:
+        return Floor.from_array(floor)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"floor must be None, 'auto', a Floor, a spec or 4 numbers, got {floor!r}",
+                         field="floor") from exc
+
+
+# ----------------------------------------------------------------------------- settings
+@dataclass(frozen=True)
+class ContactSettings:
+    """Weights of the contact rows and thresholds of the contact detection.
+
+    Weights (standard deviations; chosen on ``bench/bench_contact.py``, see its table):
+    the zero-velocity rows are stiff (1 cm/s: a planted point does not slide, and softer
+    rows did not lower the error: 12.1 and 12.3 mm against 12.4 mm on the lab walk at
+    3 and 1 cm/s), the height rows soft (2 cm: a planted ankle rises as the foot rolls;
+    1 cm raised the lab spin's error by 0.2 mm), the barrier stiff but only below the
+    point's lowest height (acting on every frame's lowest 5 % lifted the spin's error from
+    11.5 to 16.5 mm).
+
+    sigma_velocity_mps : speed of a planted foot point, m/s (zero-velocity rows).
+    sigma_height_m : height of a planted foot point about its contact height, metres.
+    sigma_floor_m : non-penetration barrier, metres (small = stiff).
+
+    Detection (heights above the point's own lowest level, speeds in m/s, smoothed over
+    ``smooth_s`` seconds; with one camera the speed leaves out the velocity along its
+    viewing direction, see :func:`detect_contacts`). The defaults find the run's short
+    stances (a running forefoot is never slower than about 10 cm/s at 60 fps); stricter
+    thresholds (5 / 8 cm/s over 0.1 s) pin fewer rolling frames, which cost less error
+    on the walk (10.2 instead of 11.6-12.4 mm) but find no contact in the run.
+
+    height_on_m, speed_on_mps : a foot point enters contact below both;
+    height_off_m, speed_off_mps : it leaves contact above either (hysteresis);
+    min_contact_s : shorter contacts are dropped; gaps shorter than ``max_gap_s`` are filled.
+    low_quantile : the quantile of a point's heights taken as its lowest level.
+    rounds : solves with contact rows (detection and floor refined before each).
+    floor_margin_m : how far below its lowest height (1st percentile over the motion, or
+        its contact height when lower) a foot point may go before the non-penetration
+        barrier acts.
+    ankle_height_m : when the foot points have no toe or heel (COCO-17's ankles), the
+        estimated floor is put this far below the planted ankles (an adult's ankle joint
+        centre stands 6-9 cm above the floor), so that the feet stand on it.
+    """
+
+    sigma_velocity_mps: float = 0.01
+    sigma_height_m: float = 0.02
+    sigma_floor_m: float = 0.003
+    height_on_m: float = 0.03
+    height_off_m: float = 0.05
+    speed_on_mps: float = 0.15
+    speed_off_mps: float = 0.25
+    smooth_s: float = 0.05
+    min_contact_s: float = 0.05
+    max_gap_s: float = 0.04
+    low_quantile: float = 0.05
+    rounds: int = 2
+    ankle_height_m: float = 0.07
+    floor_margin_m: float = 0.005
+
+    def __post_init__(self):
+        for f in fields(self):
+            v = getattr(self, f.name)
+            ok = isinstance(v, (int, float)) and np.isfinite(v) and v >= 0
+            if f.name.startswith("sigma") or f.name == "rounds":
+                ok = ok and v > 0
+            if not ok:
+                raise InputError(f"must be a non-negative number (positive for weights), got {v!r}",
+                                 field=f"contact_settings.{f.name}")
+
+
+@dataclass
+class FootContact:
+    """Where the feet are: the floor, the foot points, their contact per frame.
+
+    floor : the :class:`Floor`.
+    names : (F,) foot keypoint names.
+    contact : (T, F) bool, foot point f in contact at frame t.
+    contact_height_m : (F,) height of each foot point above the floor in contact.
+    clearance_m : (F,) the lowest each foot point may go (non-penetration).
+    """
+
+    floor: Floor
+    names: list[str]
+    contact: np.ndarray
+    contact_height_m: np.ndarray
+    clearance_m: np.ndarray
+    extra: dict = field(default_factory=dict)
+
+    def to_extras(self) -> dict:
+        """Entries for :attr:`pinrecon.Result.extras` (saved in the result NPZ)."""
+        return {
+            "floor": self.floor.as_array(),
+            "foot_names": np.array(self.names),
+            "foot_contact": np.asarray(self.contact, bool),
+            "foot_contact_height_m": np.asarray(self.contact_height_m, float),
+            "foot_clearance_m": np.asarray(self.clearance_m, float),
+        }
+
+    @classmethod
+    def from_extras(cls, d: Mapping) -> FootContact | None:
+        if "floor" not in d or "foot_names" not in d:
+            return None
+        return cls(Floor.from_array(d["floor"]), [str(n) for n in np.asarray(d["foot_names"]).ravel()],
+                   np.asarray(d["foot_contact"], bool), np.asarray(d["foot_contact_height_m"], float),
+                   np.asarray(d["foot_clearance_m"], float))
+
+
+# ----------------------------------------------------------------------------- foot points
+def foot_keypoints(figure, names: Sequence[str] | None = None) -> list[str]:
+    """The figure's foot points: distinct keypoints whose name contains ankle, heel, toe
+    or foot (case-insensitive), restricted to ``names`` when given, in figure order."""
+    allowed = None if names is None else set(names)
+    group = {n: gi for gi, g in enumerate(figure.coincident_keypoints()) for n in g}
+    out, used = [], set()
+    for n in figure.keypoint_names:
+        if FOOT_PATTERN.search(n) and (allowed is None or n in allowed) and group[n] not in used:
+            out.append(n)
+            used.add(group[n])
+    return out
+
+
+def body_up(p_feet, p_upper) -> np.ndarray:
+    """The figure's mean up direction: the mean over frames of the unit vector from the
+    foot points' centroid to ``p_upper`` ((T, 3), e.g. the pelvis, or (T, K, 3): their centroid)."""
+    up = np.asarray(p_upper, float)
+    if up.ndim == 3:
+        up = np.nanmean(up, axis=1)
+    v = up - np.nanmean(np.asarray(p_feet, float), axis=1)
+    v = v[np.all(np.isfinite(v), axis=1)]
+    v = v / np.maximum(np.linalg.norm(v, axis=1, keepdims=True), 1e-12)
+    m = v.mean(axis=0) if len(v) else np.zeros(3)
+    n = np.linalg.norm(m)
+    return m / n if n > 1e-9 else np.array([0.0, 1.0, 0.0])
+
+
+def estimate_floor(p_feet, *, up=None, p_upper=None, fps: float | None = None, tilt_prior_rad: float = 0.1,
+                   min_spread_m: float = 0.25, tol_m: float = 0.03, planted_mps: float = 0.3,
+                   iterations: int = 10) -> Floor:
+    """The floor under the planted foot points.
+
+    Parameters
+    ----------
+    p_feet : (T, F, 3) foot points, world metres.
+    up : the prior up direction; default :func:`body_up` of ``p_upper`` (the pelvis
+        (T, 3) or all keypoints (T, K, 3)), else +Y.
+    fps : frame rate; with it, only foot points slower than ``planted_mps`` count (a foot
+        on the floor is still: flight phases, swings and jumps are left out).
+    tilt_prior_rad, min_spread_m : the floor's tilt from ``up`` has this standard
+        deviation along directions in which each foot point's planted positions spread
+        (standard deviation) over at least ``min_spread_m``; along the others (sideways in a
+        straight walk, everywhere when dancing on the spot) the floor is perpendicular to
+        ``up``: a few centimetres of lever cannot tell a tilt from how a foot rolls.
+    tol_m : the scale of the robust (Cauchy) weights of the planted points: a point this
+        far from the plane counts half (a jump's apex, a foot on a step); without ``fps``
+        only the points within this of their own lowest level count.
+
+    Model: a planted foot point ``p`` of foot keypoint k satisfies ``n . p - d = c_k``
+    with its own contact height ``c_k`` (1 cm noise); ``n = normalise(up + a u1 + b u2)``
+    with the tilt prior on ``(a, b)``. Iteratively reweighted least squares in
+    ``(a, b, c_1 .. c_F)``; ``d`` puts the lowest contact height at 0, so the floor
+    passes through the lowest planted foot keypoint (a joint centre: with ankles only,
+    the floor is at ankle height).
+    """
+    P = np.asarray(p_feet, float)
+    if P.ndim != 3 or P.shape[-1] != 3 or P.shape[1] == 0 or P.shape[0] == 0:
+        raise InputError(f"expected foot points (T, F, 3), got shape {P.shape}", field="p_feet")
+    if up is not None:
+        n0 = np.asarray(up, float) / np.linalg.norm(up)
+    elif p_upper is not None:
+        n0 = body_up(P, p_upper)
+    else:
+        n0 = np.array([0.0, 1.0, 0.0])
+    a = np.eye(3)[int(np.argmin(np.abs(n0)))]
+    u1 = np.cross(n0, a)
+    u1 /= np.linalg.norm(u1)
+    u2 = np.cross(n0, u1)
+    finite = np.all(np.isfinite(P), axis=-1)
+    if not finite.any():
+        raise InputError("no finite foot point to estimate the floor from", field="p_feet")
+    slow = finite & (_speeds(P, float(fps), 0.05) < planted_mps) if fps else finite
+    F = P.shape[1]
+    use = slow if slow.sum() >= 3 else finite
+    if not fps:  # no speeds: the points within tol_m of their own lowest level (along the prior)
+        h0 = np.where(finite, np.nan_to_num(P) @ n0, np.nan)
+        level = np.array([np.nanquantile(h0[:, k], 0.05) if finite[:, k].any() else np.nan for k in range(F)])
+        use = finite & (h0 - level <= tol_m)
+    t_idx, k_idx = np.nonzero(use)
+    L = P[t_idx, k_idx]
+    ks = np.unique(k_idx)
+    col = np.searchsorted(ks, k_idx)
+    # rows: (L . u1) a + (L . u2) b - c_k = -(L . n0), in units of 1 cm; prior rows on a, b
+    A = np.zeros((len(L) + 2, 2 + len(ks)))
+    A[: len(L), 0], A[: len(L), 1] = L @ u1, L @ u2
+    A[np.arange(len(L)), 2 + col] = -1.0
+    A[: len(L)] /= 0.01
+    b = np.concatenate([-(L @ n0) / 0.01, np.zeros(2)])
+    # the prior: weak along directions the planted points spread over (per foot point,
+    # std >= min_spread_m), stiff along the others (a few cm of lever cannot tell a tilt)
+    uv = A[: len(L), :2] * 0.01
+    uv = uv - np.array([uv[col == j].mean(axis=0) for j in range(len(ks))])[col]
+    evals, evecs = np.linalg.eigh(uv.T @ uv / max(len(L), 1))
+    for r, (lam, e) in enumerate(zip(evals, evecs.T)):
+        stiff = np.sqrt(max(lam, 0.0)) < min_spread_m
+        A[len(L) + r, :2] = e / (1e-4 if stiff else tilt_prior_rad)
+    w = np.ones(len(L) + 2)
+    for _ in range(iterations):
+        x = np.linalg.lstsq(A * w[:, None], b * w, rcond=None)[0]
+        # Cauchy weights (scale tol_m): a jump's apex, a foot on a step count less and less
+        res = (A[: len(L)] @ x - b[: len(L)]) * 0.01
+        w[: len(L)] = 1.0 / np.sqrt(1.0 + (res / tol_m) ** 2)
+    m = n0 + x[0] * u1 + x[1] * u2
+    norm = np.linalg.norm(m)
+    n = m / norm
+    c = np.full(F, np.nan)
+    c[ks] = x[2:] / norm
+    d = float(np.nanmin(c[ks]))
+    return Floor(tuple(n), d)
+
+
+# ----------------------------------------------------------------------------- contacts
+def _speeds(P, fps, smooth_s, unseen=None):
+    """(T, F) speed of each point, m/s: central differences of positions averaged over
+    ``smooth_s`` seconds (NaN positions give NaN); without the velocity's component along
+    the unit vector ``unseen`` when given."""
+    T = P.shape[0]
+    if T < 2:
+        return np.zeros(P.shape[:2])
+    V = np.gradient(P, axis=0) * fps
+    if unseen is not None:
+        u = np.asarray(unseen, float) / np.linalg.norm(unseen)
+        V = V - (V @ u)[..., None] * u
+    half = int(round(0.5 * smooth_s * fps))
+    if half > 0:
+        kernel = np.ones(2 * half + 1) / (2 * half + 1)
+        pad = np.pad(V, ((half, half), (0, 0), (0, 0)), mode="edge")
+        V = np.apply_along_axis(lambda x: np.convolve(x, kernel, mode="valid"), 0, pad)
+    return np.linalg.norm(V, axis=-1)
+
+
+def _runs(mask):
+    """(start, stop) of the True runs of a 1D bool array."""
+    d = np.diff(np.r_[0, mask.astype(int), 0])
+    return list(zip(np.where(d == 1)[0], np.where(d == -1)[0]))
+
+
+def detect_contacts(p_feet, floor: Floor, fps: float, settings: ContactSettings | None = None, *,
+                    unseen=None) -> np.ndarray:
+    """(T, F) bool: foot point f is in contact at frame t.
+
+    A point enters contact when its height above its own lowest level (the
+    ``low_quantile`` of its heights) is below ``height_on_m`` and its speed below
+    ``speed_on_mps``; it stays in contact until either passes ``height_off_m`` /
+    ``speed_off_mps`` (hysteresis). Gaps shorter than ``max_gap_s`` are filled, then
+    contacts shorter than ``min_contact_s`` dropped.
+
+    ``unseen``: a direction the data do not see (a single camera's viewing direction);
+    the speed then leaves out the velocity along it: a reconstruction's depth wanders
+    where the image does not, and a planted foot is still in the image too.
+    """
+    s = settings or ContactSettings()
+    P = np.asarray(p_feet, float)
+    h = floor.height(P)
+    level = np.nanquantile(h, s.low_quantile, axis=0)
+    rel = h - level
+    v = _speeds(P, float(fps), s.smooth_s, unseen)
+    T, F = h.shape
+    on = (rel < s.height_on_m) & (v < s.speed_on_mps)
+    stay = (rel < s.height_off_m) & (v < s.speed_off_mps)
+    out = np.zeros((T, F), bool)
+    gap = int(round(s.max_gap_s * fps))
+    shortest = max(1, int(round(s.min_contact_s * fps)))
+    for f in range(F):
+        state = False
+        for t in range(T):
+            state = bool(on[t, f]) or (state and bool(stay[t, f]))
+            out[t, f] = state
+        # hysteresis backwards too: a contact starts where "stay" starts, not where "on" does
+        for t in range(T - 2, -1, -1):
+            if out[t + 1, f] and stay[t, f]:
+                out[t, f] = True
+        for a, b in _runs(~out[:, f]):
+            if 0 < a and b < T and b - a <= gap:
+                out[a:b, f] = True
+        for a, b in _runs(out[:, f]):
+            if b - a < shortest:
+                out[a:b, f] = False
+    return out
+
+
+def contact_heights(p_feet, floor: Floor, contact, settings: ContactSettings | None = None):
+    """Per foot point: (contact height, clearance), metres above ``floor``.
+
+    The contact height is the median height over the point's contact frames (its lowest
+    level when it has none); the clearance is ``floor_margin_m`` below the lower of its
+    lowest height over the motion (1st percentile) and its contact height: the barrier
+    stops feet sinking further, it does not lift what the data put low.
+    """
+    s = settings or ContactSettings()
+    h = floor.height(np.asarray(p_feet, float))
+    level = np.nanquantile(h, s.low_quantile, axis=0)
+    c = np.asarray(contact, bool)
+    height = np.array([np.nanmedian(h[c[:, f], f]) if c[:, f].any() else level[f] for f in range(h.shape[1])])
+    return height, np.minimum(np.nanquantile(h, 0.01, axis=0), height) - s.floor_margin_m
+
+
+def contacts_from_spec(spec, names: Sequence[str], n_frames: int, factor: int = 1) -> np.ndarray:
+    """A user's contacts on the reconstruction grid: (T, F) bool for foot points ``names``.
+
+    ``spec`` is a (T_tracks, F) bool array in the order of ``names``, or a mapping
+    ``{foot keypoint name: (T_tracks,) bool, or a list of [first, last] tracks frames}``
+    (missing names: never in contact). Tracks frame i is reconstruction frame ``i * factor``;
+    a super-sampled frame is in contact when both observed frames around it are.
+    """
+    T_obs = (n_frames - 1) // factor + 1
+    C = np.zeros((T_obs, len(names)), bool)
+    if isinstance(spec, Mapping):
+        unknown = [k for k in spec if k not in names]
+        if unknown:
+            raise UnknownNameError("foot keypoint", unknown, names, field="contact")
+        for k, v in spec.items():
+            j = names.index(k)
+            arr = np.asarray(v)
+            if arr.dtype == bool:
+                if arr.shape != (T_obs,):
+                    raise InputError(f"expected {T_obs} booleans, got shape {arr.shape}", field=f"contact.{k}")
+                C[:, j] = arr
+                continue
+            for rng in np.asarray(v, dtype=float).reshape(-1, 2) if len(arr) else []:
+                a, b = int(rng[0]), int(rng[1])
+                if not (0 <= a <= b < T_obs):
+                    raise InputError(f"frame range [{a}, {b}] outside the {T_obs} tracks frames", field=f"contact.{k}")
+                C[a : b + 1, j] = True
+    else:
+        C = np.asarray(spec)
+        if C.shape != (T_obs, len(names)):
+            raise InputError(f"expected contacts of shape ({T_obs}, {len(names)}) for foot points {list(names)}, "
+                             f"got {C.shape}", field="contact")
+        C = C.astype(bool)
+    if factor == 1:
+        return C
+    out = np.zeros((n_frames, len(names)), bool)
+    out[::factor] = C
+    for t in range(n_frames):
+        if t % factor:
+            i = t // factor
+            out[t] = C[i] & C[min(i + 1, T_obs - 1)]
+    return out
+
+
+# ----------------------------------------------------------------------------- rows and solve
+def contact_rows(figure, feet: FootContact, fps: float, settings: ContactSettings | None = None,
+                 factor: int = 1) -> list:
+    """The zero-velocity, contact-height and non-penetration rows of ``feet``.
+
+    On a grid super-sampled ``factor`` times, each frame's rows weigh ``1 / factor`` (the
+    contact rows keep the weight of one observed frame)."""
+    s = settings or ContactSettings()
+    idx = figure.keypoint_index(feet.names)
+    T = feet.contact.shape[0]
+    w = np.full((T, len(idx)), 1.0 / factor)
+    fl = feet.floor
+    rows = [FloorPenetration(idx, np.arange(T), fl.n, fl.offset_m, feet.clearance_m, s.sigma_floor_m, w[:, 0])]
+    if feet.contact.any():
+        rows.insert(0, ContactHeight(idx, feet.contact, fl.n, fl.offset_m, feet.contact_height_m,
+                                     s.sigma_height_m, w))
+        rows.insert(0, ContactVelocity(idx, feet.contact, fps, s.sigma_velocity_mps, w, normal=fl.n))
+    return rows
+
+
+def _foot_names(problem) -> list[str]:
+    fig = problem.figure
+    seen = None
+    for src in (getattr(problem, "tracks", None), getattr(problem, "markers", None)):
+        if src is not None:
+            seen = list(src.names)
+            break
+    names = foot_keypoints(fig, seen)
+    if not names and seen is not None:
+        names = foot_keypoints(fig)
+    if not names:
+        raise InputError(
+            f"the figure has no foot keypoint (a name containing ankle, heel, toe or foot): "
+            f"{fig.keypoint_names[:40]}", field="floor",
+        )
+    return names
+
+
+def sole_offset(names: Sequence[str], settings: ContactSettings | None = None) -> float:
+    """How far the floor lies below the lowest planted foot keypoint: 0 when the foot
+    points include a toe or a heel, else (ankles only) ``settings.ankle_height_m``."""
+    s = settings or ContactSettings()
+    return 0.0 if any(re.search(r"(?i)toe|heel", n) for n in names) else float(s.ankle_height_m)
+
+
+def _unseen(problem):
+    """The viewing direction of a problem's single camera (world axes), else None."""
+    views = getattr(problem, "views", None) or []
+    if len(views) != 1 or not hasattr(views[0].camera, "R"):
+        return None
+    return np.asarray(views[0].camera.R, float)[2]
+
+
+def ground_contacts(problem, Q, floor="auto", contact="auto", settings: ContactSettings | None = None,
+                    names: Sequence[str] | None = None, g=None) -> FootContact:
+    """The floor and contacts of trajectory ``Q`` of ``problem`` (see :func:`solve_on_the_floor`);
+    ``g`` the global unknowns (the figure's proportions) when the problem has them."""
+    s = settings or ContactSettings()
+    fig = problem.figure
+    names = list(names) if names is not None else _foot_names(problem)
+    P_all = problem.keypoints(Q, g) if hasattr(problem, "keypoints") else fig.keypoints(Q)
+    feet = P_all[:, fig.keypoint_index(names)]
+    fl = as_floor(floor)
+    if fl == "auto":
+        upper = Q[:, :3] if fig.floating else P_all
+        fl = estimate_floor(feet, p_upper=upper, fps=problem.fps)
+        fl = Floor(fl.normal, fl.offset_m - sole_offset(names, s))
+    if isinstance(contact, str) and contact == "auto":
+        C = detect_contacts(feet, fl, problem.fps, s, unseen=_unseen(problem))
+    elif contact is None or contact is False:
+        C = np.zeros(feet.shape[:2], bool)
+    else:
+        C = contacts_from_spec(contact, names, len(Q), problem.factor)
+    height, clearance = contact_heights(feet, fl, C, s)
+    return FootContact(fl, names, C, height, clearance)
+
+
+def solve_on_the_floor(problem, res, floor="auto", contact="auto", *, settings: ContactSettings | None = None,
+                       options=None, callback=None):
+    """Solve ``problem`` again with the feet on the ground, from solution ``res``.
+
+    Each of ``settings.rounds`` rounds re-estimates the floor (``floor="auto"``; a given
+    :class:`Floor` or spec stays) and the contacts (``contact="auto"``; a given array or
+    mapping stays, see :func:`contacts_from_spec`; ``False``: no contact rows, only the
+    floor) from the current trajectory, adds the contact rows to the problem and solves
+    warm from it. Returns (the problem with the last rows, the solve result, the
+    :class:`FootContact` the last solve used).
+    """
+    s = settings or ContactSettings()
+    x = res.x
+    feet = None
+    out_problem = problem
+    for _ in range(int(s.rounds)):
+        g = getattr(res, "g", None)
+        g = None if g is None or not len(g) else g
+        feet = ground_contacts(problem, x, floor, contact, s, names=None if feet is None else feet.names, g=g)
+        out_problem = problem.with_rows(contact_rows(problem.figure, feet, problem.fps, s, problem.factor))
+        res = solve(out_problem, x, options, callback, active=problem.active, **({} if g is None else {"g0": g}))
+        x = res.x
+    return out_problem, res, feet
+
+
+# ----------------------------------------------------------------------------- metrics
+def foot_metrics(p_feet, floor: Floor, contact, fps: float, *, clearance_m=None, contact_height_m=None) -> dict:
+    """Skating, penetration and floating of foot points ``p_feet`` (T, F, 3).
+
+    * ``skating_mps``: mean horizontal speed (parallel to the floor) of a foot point
+      between frames t and t + 1 when it is in contact at both.
+    * ``penetration_m`` / ``penetration_max_m``: mean / largest depth of a foot point
+      below its clearance (default 0: the floor plane), over all frames and foot points.
+    * ``floating_m``: mean height of a foot point above its contact height (default its
+      clearance) over its contact frames, 0 where it is lower.
+    * ``contact_frames``: number of (frame, foot point) contacts.
+
+    ``clearance_m`` and ``contact_height_m`` are (F,) or (T, F).
+    """
+    P = np.asarray(p_feet, float)
+    C = np.asarray(contact, bool)
+    h = floor.height(P)
+    clear = np.zeros(h.shape) if clearance_m is None else np.broadcast_to(np.asarray(clearance_m, float), h.shape)
+    ch = clear if contact_height_m is None else np.broadcast_to(np.asarray(contact_height_m, float), h.shape)
+    both = C[:-1] & C[1:]
+    step = floor.horizontal(np.diff(P, axis=0))
+    speed = np.linalg.norm(step, axis=-1) * float(fps)
+    depth = np.maximum(0.0, clear - h)
+    return {
+        "skating_mps": float(speed[both].mean()) if both.any() else float("nan"),
+        "penetration_m": float(depth.mean()),
+        "penetration_max_m": float(depth.max()) if depth.size else 0.0,
+        "floating_m": float(np.maximum(0.0, h - ch)[C].mean()) if C.any() else float("nan"),
+        "contact_frames": int(C.sum()),
+    }

@@ -1,0 +1,222 @@
+"""Detector faults after a first solve: left/right swaps repaired, outliers reported.
+
+A 2D detector sometimes labels a person's left limbs as right and the other way round
+for a frame, and sometimes puts a point somewhere else altogether. The confidence-
+weighted robust loss (``Weights.loss``, Cauchy by default when the tracks carry
+confidences) keeps single bad points from dragging the solution; this stage then uses
+the solution to look at every frame again:
+
+* **Swaps** (:func:`detect_swaps`): in every observed frame both labellings of the
+  left/right pairs (``left_*``/``right_*``, ``Left*``/``Right*``) are scored against the
+  current estimate's projection with the measurement rows' own robust cost
+  (confidence weights, ``sigma_px``, loss and scale). A frame is a swap when the swapped
+  labelling is cheaper by more than ``margin`` nats. Repaired frames get their labels
+  exchanged in the measurement rows (and ``problem.tracks``) and the problem is solved
+  again from the current estimate (warm), twice at most.
+* **Outliers** (:func:`find_outliers`): observed points whose reprojection error after
+  convergence exceeds ``max(5 sigma_px, median + 5 MAD-sigma)`` of all points' errors
+  are reported (frame, name, error); they are left in, down-weighted by the loss.
+
+:func:`fault_stage` runs both for the pipeline (``reconstruct``) and leaves a
+:class:`FaultReport` in ``problem.reports["faults"]``; ``Result.extras`` carries
+``repaired_frames``, ``outlier_frames``, ``outlier_points`` and ``outlier_error_px``.
+Frames are the tracks' frames.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .solver import SolveResult, SolverOptions, solve
+
+__all__ = ["FaultReport", "detect_swaps", "fault_stage", "find_outliers", "left_right_pairs", "repair_swaps"]
+
+_SIDES = (("left_", "right_"), ("Left", "Right"), ("left", "right"), ("l_", "r_"), ("L", "R"))
+
+
+def left_right_pairs(names) -> list[tuple[int, int]]:
+    """Index pairs (left, right) of ``names`` that differ only by their side prefix
+    (``left_knee``/``right_knee``, ``LeftLeg``/``RightLeg``, ``LHipJoint``/``RHipJoint``)."""
+    pos = {n: i for i, n in enumerate(names)}
+    out = []
+    for n, i in pos.items():
+        for lo, ro in _SIDES:
+            if n.startswith(lo) and ro + n[len(lo):] in pos:
+                out.append((i, pos[ro + n[len(lo):]]))
+                break
+    return out
+
+
+def _rho(meas, e2):
+    """The measurement rows' loss of whitened squared errors (2 rho, i.e. |r|^2 for l2)."""
+    if meas.loss == "l2":
+        return e2
+    c2 = meas.loss_scale ** 2
+    if meas.loss == "huber":
+        e = np.sqrt(e2)
+        return np.where(e2 <= c2, e2, 2.0 * meas.loss_scale * e - c2)
+    return c2 * np.log1p(e2 / c2)
+
+
+def _views(problem):
+    """(tracks, measurement rows, factor) of every camera of the problem."""
+    views = getattr(problem, "views", None)
+    if views:
+        return [(v.tracks, v.measurement, max(int(v.factor), 1)) for v in views if v.measurement is not None]
+    if problem.measurement is None or problem.tracks is None:
+        return []
+    return [(problem.tracks, problem.measurement, max(int(problem.factor), 1))]
+
+
+def _measured(problem, meas, Q, g=None):
+    """Projections (N, M, 2) of the measured keypoints at the measurement frames."""
+    state = problem.state(Q, jacobian=False) if g is None else problem.state(Q, jacobian=False, g=g)
+    P = state.points[state.slot[meas.frames]][:, meas.keypoints]
+    camera = meas.camera_at(state) if hasattr(meas, "camera_at") else meas.camera
+    return camera.project(P)
+
+
+def _permutation(names):
+    pairs = left_right_pairs(names)
+    perm = np.arange(len(names))
+    if pairs:
+        a, b = np.array(pairs).T
+        perm[a], perm[b] = b, a
+    return pairs, perm
+
+
+def detect_swaps(problem, Q, *, margin: float = 4.0, g=None, view: int = 0):
+    """Frames whose left/right labels are swapped, judged against the estimate ``Q``.
+
+    Returns ``(rows, gain)``: indices into the camera ``view``'s measurement frames of the
+    frames where exchanging every left/right pair lowers the frame's robust measurement
+    cost by more than ``margin`` nats, and that gain (nats) for each."""
+    views = _views(problem)
+    if view >= len(views):
+        return np.zeros(0, int), np.zeros(0)
+    tracks, meas, _ = views[view]
+    pairs, perm = _permutation(list(tracks.names))
+    if not pairs or not len(meas.frames):
+        return np.zeros(0, int), np.zeros(0)
+    uv_hat = _measured(problem, meas, Q, g)
+    sw = meas.sqrt_w  # (N, M): sqrt(confidence) / sigma, 0 where missing
+
+    def cost(uv_obs, s):
+        e2 = np.sum((uv_hat - uv_obs) ** 2, axis=-1) * s**2
+        return 0.5 * np.sum(np.where(s > 0, _rho(meas, e2), 0.0), axis=1)
+
+    a, b = np.array(pairs).T
+    both = (sw[:, a] > 0) & (sw[:, b] > 0)
+    gain = cost(meas.uv_filled, sw) - cost(meas.uv_filled[:, perm], sw[:, perm])
+    rows = np.flatnonzero((gain > margin) & both.any(axis=1))
+    return rows, gain[rows]
+
+
+def repair_swaps(problem, rows, *, view: int = 0) -> None:
+    """Exchange the left/right labels of the camera ``view``'s measurement rows ``rows``
+    in place (the measurement rows and that camera's tracks)."""
+    rows = np.asarray(rows, int)
+    if not len(rows):
+        return
+    tracks, meas, factor = _views(problem)[view]
+    _, perm = _permutation(list(tracks.names))
+    for attr in ("uv_px", "uv_filled", "sqrt_w", "observed"):
+        arr = getattr(meas, attr)
+        arr[rows] = arr[rows][:, perm]
+    fr = meas.frames[rows] // factor
+    tracks.points[fr] = tracks.points[fr][:, perm]
+    if tracks.confidence is not None:
+        tracks.confidence[fr] = tracks.confidence[fr][:, perm]
+
+
+def find_outliers(problem, Q, *, threshold_px: float | None = None, g=None, view: int = 0):
+    """Observed points far from the estimate's projection after convergence (camera ``view``).
+
+    Returns ``(frames, names, error_px, threshold_px)``: tracks frames, point names and
+    reprojection errors (pixels) of the points whose error exceeds the threshold
+    (default ``max(5 sigma_px, median + 5 * 1.4826 MAD)`` over all observed points)."""
+    views = _views(problem)
+    if view >= len(views) or not len(views[view][1].frames):
+        return np.zeros(0, int), np.zeros(0, str), np.zeros(0), float("nan")
+    tracks, meas, factor = views[view]
+    err = np.linalg.norm(_measured(problem, meas, Q, g) - meas.uv_px, axis=-1)
+    ok = meas.observed & np.isfinite(err)
+    e = err[ok]
+    if threshold_px is None:
+        med = float(np.median(e)) if e.size else 0.0
+        mad = float(np.median(np.abs(e - med))) if e.size else 0.0
+        threshold_px = max(5.0 * meas.sigma_px, med + 5.0 * 1.4826 * mad)
+    n, m = np.nonzero(ok & (err > threshold_px))
+    names = np.array([tracks.names[k] for k in m], dtype=str)
+    return meas.frames[n] // factor, names, err[n, m], float(threshold_px)
+
+
+@dataclass
+class FaultReport:
+    """What :func:`fault_stage` found: ``repaired_frames`` (tracks frames whose left and
+    right labels were exchanged), ``swap_gain`` (nats each repair saved), and the
+    outliers (``outlier_frames``, ``outlier_points``, ``outlier_error_px``, above
+    ``outlier_threshold_px``)."""
+
+    repaired_frames: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
+    swap_gain: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    outlier_frames: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
+    outlier_points: np.ndarray = field(default_factory=lambda: np.zeros(0, str))
+    outlier_error_px: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    outlier_threshold_px: float = float("nan")
+
+    prefix: str = ""
+
+    def to_extras(self) -> dict:
+        """Arrays for ``Result.extras`` (keys prefixed with ``<camera>_`` for a second camera)."""
+        out = {
+            "repaired_frames": np.asarray(self.repaired_frames, int),
+            "outlier_frames": np.asarray(self.outlier_frames, int),
+            "outlier_points": np.asarray(self.outlier_points, dtype=str),
+            "outlier_error_px": np.asarray(self.outlier_error_px, float),
+            "outlier_threshold_px": np.float64(self.outlier_threshold_px),
+        }
+        return {self.prefix + k: v for k, v in out.items()}
+
+
+def fault_stage(problem, res: SolveResult, options: SolverOptions | None = None, callback=None, *,
+                rounds: int = 2, margin: float = 4.0) -> SolveResult:
+    """Repair left/right swaps against the solution ``res`` (every camera) and solve again
+    warm (up to ``rounds`` times while new swaps are found), then report outliers. The
+    :class:`FaultReport` goes to ``problem.reports["faults"]`` (when the problem has
+    ``reports``; frames of the first camera, the others' in ``"faults_<camera>"``).
+    Returns the final solve."""
+    views = _views(problem)
+    if not views:
+        return res
+    g = getattr(res, "g", None)
+    g = None if g is None or not len(g) else g
+    toggled = [np.zeros(len(m.frames), bool) for _, m, _ in views]  # a frame swapped twice is back
+    gain_of = [np.zeros(len(m.frames)) for _, m, _ in views]
+    for _ in range(rounds):
+        found = False
+        for v in range(len(views)):
+            rows, gain = detect_swaps(problem, res.x, margin=margin, g=g, view=v)
+            if len(rows):
+                repair_swaps(problem, rows, view=v)
+                toggled[v][rows] ^= True
+                gain_of[v][rows] += gain
+                found = True
+        if not found:
+            break
+        kw = {"g0": g} if g is not None else {}
+        res = solve(problem, res.x, options, callback, active=problem.active, **kw)
+        g = getattr(res, "g", None)
+        g = None if g is None or not len(g) else g
+    reports = getattr(problem, "reports", None)
+    names = getattr(problem, "camera_names", None) or [f"camera{v + 1}" for v in range(len(views))]
+    for v, (_, meas, factor) in enumerate(views):
+        rows = np.flatnonzero(toggled[v])
+        report = FaultReport(meas.frames[rows] // factor, gain_of[v][rows], prefix="" if v == 0 else f"{names[v]}_")
+        (report.outlier_frames, report.outlier_points, report.outlier_error_px,
+         report.outlier_threshold_px) = find_outliers(problem, res.x, g=g, view=v)
+        if reports is not None:
+            reports["faults" if v == 0 else f"faults_{names[v]}"] = report
+    return res

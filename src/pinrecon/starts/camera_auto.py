@@ -1,0 +1,334 @@
+"""Cameras as they come: a camera for tracks that have no calibration file, and the
+focal length (or scale) started from the keyframes.
+
+**The auto camera** (:func:`auto_camera`, ``reconstruct(..., camera="auto")``, CLI
+``--camera auto``). One view of a moving figure does not fix everything about the
+camera that filmed it, so the unknowns that are not observable are fixed by convention
+(the gauge) and the observable ones are estimated:
+
+* *Perspective* (the default): square pixels, no skew, the principal point at the image
+  centre ``(W/2, H/2)``, no lens distortion, and the focal length from a default
+  horizontal field of view :data:`DEFAULT_FOV_DEG` (60 degrees, a phone or webcam:
+  ``f = W / 2 / tan(30 deg) = 0.866 W``); the focal length is then refined in the
+  batch solve as a global unknown (:class:`~pinrecon.rows.CameraScale`).
+* *Orthographic*: the scale (pixels per metre) from the tracks' spread against the
+  figure's size, the image centre as the world origin's image; the scale is refined
+  the same way.
+* *Pose*: without 3D keyframes the camera's placement in the world is a pure gauge: the
+  world is the camera's (optical centre at the origin, looking along world +Z, image
+  up = world +Y). Where the subject stands (depth, heading) is estimated by the start
+  from the tracks and the figure's size. The camera's height and tilt above the floor
+  are not observable from joint tracks alone; ``pinrecon export`` levels the motion on
+  the floor under the feet afterwards. With point keyframes (3D positions in a world of
+  the user's) the camera's rotation, position and focal length are estimated from the
+  keyframes and the tracks at those frames (:func:`camera_from_keyframes`: a direct
+  linear transform refined on the reprojection error).
+
+What stays unobservable (``docs/globals.md``, section 4): with neither keyframes nor a
+known figure size, overall size against distance (perspective) or scale
+(orthographic): the prior on the figure's proportions (or the figure as given) fixes
+it; and focal length against distance is only weakly observable, through the
+perspective within the figure (its depth extent against its distance).
+
+**Focal length from keyframes** (:func:`camera_scale_from_keyframes`): a given camera
+whose focal length (or scale) is to be calibrated starts from the least-squares value
+that best projects the point keyframes onto the tracks at the keyed frames (closed
+form), so the batch solve starts near it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..cameras import Orthographic, Perspective, look_at_rotation
+from ..errors import InputError
+
+__all__ = [
+    "DEFAULT_FOV_DEG",
+    "AutoCamera",
+    "auto_camera",
+    "image_size_of",
+    "camera_from_keyframes",
+    "orthographic_from_keyframes",
+    "camera_scale_from_keyframes",
+    "keyframe_correspondences",
+]
+
+#: default horizontal field of view of the auto perspective camera, degrees
+DEFAULT_FOV_DEG = 60.0
+
+#: the auto camera's rotation world -> camera: looking along world +Z, world +Y up
+R_AUTO = look_at_rotation((0.0, 0.0, 1.0), (0.0, 1.0, 0.0))
+
+
+@dataclass(frozen=True)
+class AutoCamera:
+    """A camera to be estimated (``reconstruct(..., camera=AutoCamera(...))``; the string
+    ``"auto"`` is ``AutoCamera()``).
+
+    image_size : (W, H) pixels; default: the tracks' own (``tracks.image_size``), else an
+        error asking for it.
+    projection : ``"perspective"`` or ``"orthographic"``.
+    fov_deg : the perspective camera's starting horizontal field of view, degrees.
+    """
+
+    image_size: tuple[float, float] | None = None
+    projection: str = "perspective"
+    fov_deg: float = DEFAULT_FOV_DEG
+
+    def __post_init__(self):
+        if self.projection not in ("perspective", "orthographic"):
+            raise InputError(f"must be 'perspective' or 'orthographic', got {self.projection!r}", field="projection")
+        if not (isinstance(self.fov_deg, (int, float)) and 1.0 <= float(self.fov_deg) <= 170.0):
+            raise InputError(f"must be a field of view in degrees between 1 and 170, got {self.fov_deg!r}",
+                             field="fov_deg")
+        if self.image_size is not None:
+            object.__setattr__(self, "image_size", _check_size(self.image_size))
+
+    @classmethod
+    def parse(cls, spec, **kw) -> AutoCamera | None:
+        """``AutoCamera`` for ``"auto"``, ``"auto:perspective"``, ``"auto:orthographic"`` or
+        an ``AutoCamera``; ``None`` for anything else (a real camera)."""
+        if isinstance(spec, AutoCamera):
+            return spec
+        if isinstance(spec, str) and spec.split(":")[0] == "auto":
+            proj = spec.split(":", 1)[1] if ":" in spec else kw.pop("projection", "perspective")
+            return cls(projection=proj, **kw)
+        return None
+
+
+def _check_size(size) -> tuple[float, float]:
+    try:
+        w, h = (float(v) for v in size)
+    except (TypeError, ValueError):
+        raise InputError(f"must be two numbers W H (pixels), got {size!r}", field="image_size") from None
+    if not (np.isfinite(w) and np.isfinite(h) and w >= 16 and h >= 16):
+        raise InputError(f"must be two positive sizes W H of at least 16 px, got {size!r}", field="image_size")
+    return (w, h)
+
+
+def image_size_of(tracks, image_size=None) -> tuple[float, float]:
+    """``image_size`` if given, else the tracks' own ``image_size`` attribute when they
+    carry one; otherwise a clear error (the principal point is the image centre)."""
+    if image_size is not None:
+        return _check_size(image_size)
+    own = getattr(tracks, "image_size", None)
+    if own is not None:
+        return _check_size(own)
+    raise InputError(
+        "the auto camera needs the image size (its centre is the principal point) and these tracks do not "
+        "carry one: pass image_size=(W, H) (CLI: --image-size W H)",
+        file=getattr(tracks, "source", None),
+        field="image_size",
+    )
+
+
+def keyframe_correspondences(tracks, keyframes) -> tuple[np.ndarray, np.ndarray]:
+    """World points (N, 3) of the point keyframes and the tracks' pixels (N, 2) of the
+    same points at the same frames (keyframe frames index the tracks), observed ones only."""
+    X, uv = [], []
+    names = {n: i for i, n in enumerate(tracks.names)}
+    for k in keyframes or ():
+        if k.points is None or not (0 <= k.frame < tracks.T):
+            continue
+        for name, p in k.points.items():
+            j = names.get(name)
+            if j is None:
+                continue
+            u = tracks.points[k.frame, j]
+            if np.all(np.isfinite(u)) and np.all(np.isfinite(p)):
+                X.append(np.asarray(p, float))
+                uv.append(u)
+    return np.reshape(X, (-1, 3)), np.reshape(uv, (-1, 2))
+
+
+def camera_scale_from_keyframes(camera, tracks, keyframes, min_points: int = 6):
+    """``camera`` with its focal length (perspective; fx and fy together, the principal
+    point fixed) or scale (orthographic) set to the least-squares value that projects
+    the point keyframes onto the tracks at the keyed frames; ``camera`` itself when
+    fewer than ``min_points`` correspondences exist or the camera has lens distortion.
+
+    Perspective: ``u - c = f (x/z)`` with ``x/z`` from the camera's pose, so
+    ``f = sum (u - c).(x/z) / sum |x/z|^2``; orthographic: ``u - c = s (R X)[:2]``
+    with ``c`` fitted too (the image of the world origin)."""
+    X, uv = keyframe_correspondences(tracks, keyframes)
+    if len(X) < min_points:
+        return camera
+    if isinstance(camera, Orthographic):
+        a = X @ camera.R[:2].T  # (N, 2) metres in the image plane
+        am, um = a.mean(0), uv.mean(0)
+        den = float(((a - am) ** 2).sum())
+        if den <= 1e-12:
+            return camera
+        s = float(((uv - um) * (a - am)).sum()) / den
+        if not s > 0:
+            return camera
+        return dataclasses.replace(camera, scale=s, center=um - s * am)
+    if isinstance(camera, Perspective) and not camera.has_distortion:
+        x = camera.camera_points(X)
+        ok = x[:, 2] > 1e-6
+        if ok.sum() < min_points:
+            return camera
+        xy = x[ok, :2] / x[ok, 2:3]
+        d = uv[ok] - camera.K[:2, 2]
+        den = float((xy * xy).sum())
+        f = float((d * xy).sum()) / den if den > 1e-12 else 0.0
+        if not f > 0:
+            return camera
+        K = np.array(camera.K, float)
+        K[:2, :2] *= f / K[0, 0]
+        return dataclasses.replace(camera, K=K)
+    return camera
+
+
+def _rodrigues(r) -> np.ndarray:
+    th = float(np.linalg.norm(r))
+    if th < 1e-12:
+        return np.eye(3)
+    k = np.asarray(r, float) / th
+    Kx = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    return np.eye(3) + np.sin(th) * Kx + (1.0 - np.cos(th)) * Kx @ Kx
+
+
+def _log_rotation(R) -> np.ndarray:
+    from scipy.spatial.transform import Rotation
+
+    return Rotation.from_matrix(R).as_rotvec()
+
+
+def camera_from_keyframes(X, uv, image_size, f0: float) -> Perspective | None:
+    """A perspective camera (principal point at the image centre, square pixels) whose
+    rotation, position and focal length best project world points ``X`` (N, 3) onto
+    pixels ``uv`` (N, 2): a direct linear transform in coordinates normalised by ``f0``
+    (RQ-decomposed into K R), then Gauss-Newton on the reprojection error over the
+    rotation, translation and log focal length. ``None`` when the points are too few
+    (fewer than 6) or degenerate (coplanar, or behind the camera)."""
+    from scipy.linalg import rq
+    from scipy.optimize import least_squares
+
+    X, uv = np.asarray(X, float), np.asarray(uv, float)
+    if len(X) < 6 or np.linalg.matrix_rank(X - X.mean(0), tol=1e-3) < 3:
+        return None
+    c = np.array([image_size[0] / 2.0, image_size[1] / 2.0])
+    xy = (uv - c) / f0
+    mX = X.mean(0)
+    sX = float(np.sqrt(((X - mX) ** 2).sum(1).mean())) or 1.0
+    Xn = (X - mX) / sX
+    A = np.zeros((2 * len(X), 12))
+    Xh = np.c_[Xn, np.ones(len(X))]
+    A[0::2, 0:4], A[0::2, 8:12] = Xh, -xy[:, :1] * Xh
+    A[1::2, 4:8], A[1::2, 8:12] = Xh, -xy[:, 1:2] * Xh
+    P = np.linalg.svd(A)[2][-1].reshape(3, 4)
+    M = P[:, :3]
+    if np.linalg.det(M) < 0:
+        P, M = -P, -M
+    Kr, R = rq(M)
+    D = np.diag(np.sign(np.diag(Kr)))  # positive diagonal of K: R' = D R, K' = K D
+    Kr, R = Kr @ D, D @ R
+    if np.linalg.det(R) < 0:
+        return None
+    scale = Kr[2, 2]
+    f_rel = 0.5 * (Kr[0, 0] + Kr[1, 1]) / scale
+    t_n = np.linalg.solve(Kr, P[:, 3])  # translation in normalised world units
+    t = t_n * sX - R @ mX
+    f = f0 * f_rel
+    if not (np.isfinite(f) and f > 0):
+        return None
+    x_cam = X @ R.T + t
+    if np.mean(x_cam[:, 2] > 0) < 0.5:
+        return None
+
+    def resid(p):
+        Rp = _rodrigues(p[:3])
+        xc = X @ Rp.T + p[3:6]
+        z = np.where(np.abs(xc[:, 2]) > 1e-9, xc[:, 2], 1e-9)
+        return (np.exp(p[6]) * xc[:, :2] / z[:, None] + c - uv).ravel()
+
+    p0 = np.r_[_log_rotation(R), t, np.log(f)]
+    sol = least_squares(resid, p0, method="lm", max_nfev=200)
+    R, t, f = _rodrigues(sol.x[:3]), sol.x[3:6], float(np.exp(sol.x[6]))
+    K = np.array([[f, 0.0, c[0]], [0.0, f, c[1]], [0.0, 0.0, 1.0]])
+    return Perspective(K, R, t)
+
+
+def orthographic_from_keyframes(X, uv) -> Orthographic | None:
+    """The orthographic camera ``u = s (R X)[:2] + c`` best projecting world points ``X``
+    (N, 3) onto pixels ``uv`` (N, 2): the affine map ``u = A X + b`` by linear least
+    squares, then ``A`` replaced by the nearest ``s R[:2]`` (orthonormal rows, ``s`` the
+    mean singular value) and ``c`` refitted. ``None`` for fewer than 4 points or
+    degenerate ones."""
+    X, uv = np.asarray(X, float), np.asarray(uv, float)
+    if len(X) < 4 or np.linalg.matrix_rank(X - X.mean(0), tol=1e-3) < 3:
+        return None
+    Xh = np.c_[X, np.ones(len(X))]
+    Ab = np.linalg.lstsq(Xh, uv, rcond=None)[0].T  # (2, 4)
+    U, S, Vt = np.linalg.svd(Ab[:, :3], full_matrices=False)
+    s = float(S.mean())
+    if not s > 0:
+        return None
+    R2 = U @ Vt  # (2, 3) orthonormal rows
+    R = np.vstack([R2, np.cross(R2[0], R2[1])])
+    c = (uv - s * X @ R2.T).mean(0)
+    return Orthographic(R, s, c)
+
+
+def _figure_height_m(figure, names: Sequence[str]) -> float:
+    """Extent (metres) of the figure's rest pose over the named keypoints (its largest
+    axis-aligned spread): the size the tracks' spread is compared with."""
+    from ..problem import rest_pose
+
+    P = figure.keypoints(rest_pose(figure))[figure.keypoint_index(list(names))]
+    return float(np.ptp(P, axis=0).max())
+
+
+def auto_camera(tracks, figure=None, image_size=None, projection: str = "perspective", *,
+                fov_deg: float = DEFAULT_FOV_DEG, keyframes=None):
+    """A starting camera for ``tracks`` without a calibration (see the module docstring).
+
+    ``image_size`` (W, H) defaults to the tracks' own. Perspective: principal point at
+    the image centre, focal length ``W / 2 / tan(fov_deg / 2)``, at the world origin
+    looking along +Z (Y up); with 6 or more point-keyframe correspondences, rotation,
+    position and focal length from them (:func:`camera_from_keyframes`). Orthographic:
+    the same rotation, the scale from the tracks' median per-frame spread against the
+    ``figure``'s rest-pose extent over the tracked points (keyframes, when given, fit the
+    scale and centre; :func:`camera_scale_from_keyframes`), the image centre as the
+    world origin's image.
+    """
+    spec = AutoCamera(image_size, projection, fov_deg)
+    W, H = image_size_of(tracks, spec.image_size)
+    centre = np.array([W / 2.0, H / 2.0])
+    if spec.projection == "perspective":
+        f = (W / 2.0) / np.tan(np.radians(spec.fov_deg) / 2.0)
+        X, uv = keyframe_correspondences(tracks, keyframes)
+        if len(X) >= 6:
+            cam = camera_from_keyframes(X, uv, (W, H), f)
+            if cam is not None:
+                return cam
+        K = np.array([[f, 0.0, centre[0]], [0.0, f, centre[1]], [0.0, 0.0, 1.0]])
+        return Perspective(K, R_AUTO, np.zeros(3))
+    if figure is None:
+        raise InputError("the orthographic auto camera needs the figure (its size sets the scale)", field="figure")
+    names = [n for n in tracks.names if n in figure.keypoint_names]
+    if not names:
+        raise InputError("the tracks share no point with the figure", file=getattr(tracks, "source", None),
+                         field="names")
+    uv = tracks.select(names).points
+    seen = np.isfinite(uv[..., 0]).sum(axis=1) >= 2
+    spread_px = float("nan")
+    if seen.any():
+        spread = np.nanmax(uv[seen], axis=1) - np.nanmin(uv[seen], axis=1)  # (T', 2)
+        spread_px = float(np.median(spread.max(axis=1)))
+    size_m = _figure_height_m(figure, names)
+    if not (np.isfinite(spread_px) and spread_px > 0 and size_m > 0):
+        raise InputError("the tracks have no frame with two or more points to size the camera",
+                         file=getattr(tracks, "source", None), field="points")
+    X, uv = keyframe_correspondences(tracks, keyframes)
+    if len(X) >= 6:
+        cam = orthographic_from_keyframes(X, uv)
+        if cam is not None:
+            return cam
+    return Orthographic(R_AUTO, spread_px / size_m, centre)

@@ -1,0 +1,267 @@
+"""Long clips in bounded memory: the batch solve over overlapping windows of frames.
+
+The batch solve's memory is linear in the number of frames (the band of ``J^T J``, its
+factor and the Jacobians: about 50 KB a frame for the human, see ``bench/bench_engine.py``),
+so an hour of motion does not fit. :func:`solve_windowed` solves the same problem window
+by window, in order:
+
+* windows of ``window`` frames (reconstruction frames) overlap by ``overlap`` frames;
+  each is a problem of its own, built from the clip's inputs restricted to its frames
+  (:func:`pinrecon.problem.make_problem`: the tracks of every camera, the keyframes that
+  fall in it, the same weights and calibration mode);
+* each window starts from the same start as the batch solve, computed on the window's
+  data (or from a given start trajectory), except for the frames it shares with the
+  previous window, which start warm from that window's solution;
+* its solution is stitched on: inside the overlap the two solutions are blended
+  geodesically (``pin.interpolate``), the weight of the new one going from 0 to 1 over
+  the middle half of the overlap, away from both windows' ends where a window knows least;
+* global unknowns (a calibration) are solved in the first window and held after it;
+* the fault stage (:func:`pinrecon.faults.fault_stage`: left/right swaps repaired,
+  outliers) runs in every window; its reports are merged.
+
+Only one window's problem and solver buffers exist at a time, so memory does not grow
+with the clip (the inputs and the output trajectory, a few hundred bytes a frame, do).
+On clips that fit in memory the windowed answer is within 1 mm (mean per-joint) of the
+batch one (``tests/test_windowed.py``, ``bench/bench_engine.py``).
+
+:func:`pinrecon.reconstruct` windows by itself past :data:`AUTO_WINDOW_FRAMES` frames,
+or when given ``window=N`` (``window=0``: never); ``pinrecon reconstruct --window N``.
+Progress: the callback gets every window's :class:`~pinrecon.solver.IterationReport`\\ s
+and, when it has a ``window`` method, a :class:`WindowReport` after each window.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from .errors import InputError
+from .faults import FaultReport, fault_stage
+from .problem import make_problem
+from .solver import SolveResult, SolverOptions, solve
+from .starts import initial_trajectory
+from .tracks import Keyframes
+
+__all__ = ["solve_windowed", "window_plan", "windowed_length", "WindowReport", "AUTO_WINDOW_FRAMES",
+           "DEFAULT_WINDOW", "DEFAULT_OVERLAP"]
+
+#: clips longer than this many reconstruction frames are solved in windows by default
+AUTO_WINDOW_FRAMES = 10_000
+#: frames per window when windowing is automatic
+DEFAULT_WINDOW = 2_000
+#: frames two consecutive windows share (at most a third of the window)
+DEFAULT_OVERLAP = 200
+
+
+@dataclass
+class WindowReport:
+    """One solved window: its index (from 1) of ``count``, its frames ``[first, last]``
+    (reconstruction frames, inclusive), iterations, final cost, status and CPU seconds."""
+
+    index: int
+    count: int
+    first: int
+    last: int
+    iterations: int
+    cost: float
+    status: str
+    seconds: float
+
+    def __str__(self) -> str:
+        return (f"window {self.index}/{self.count}  frames {self.first}-{self.last}  {self.iterations} iterations  "
+                f"cost {self.cost:.6g}  {self.status}  {self.seconds:.1f}s")
+
+
+def windowed_length(n_frames: int, window: int | None) -> int | None:
+    """The window length :func:`pinrecon.reconstruct` uses for ``n_frames`` frames:
+    ``window`` when given (``0``: ``None``, the batch solve), else
+    :data:`DEFAULT_WINDOW` past :data:`AUTO_WINDOW_FRAMES` frames, else ``None``."""
+    if window is None:
+        return DEFAULT_WINDOW if n_frames > AUTO_WINDOW_FRAMES else None
+    if isinstance(window, bool) or not isinstance(window, (int, np.integer)) or window < 0:
+        raise InputError(f"must be a number of frames (0: no windows), got {window!r}", field="window")
+    if window == 0 or window >= n_frames:
+        return None
+    return int(window)
+
+
+def window_plan(n_frames: int, window: int, overlap: int, unit: int = 1) -> list[tuple[int, int]]:
+    """Windows ``(first, last)`` (inclusive) covering frames ``0 .. n_frames - 1``, each
+    about ``window`` frames long, consecutive ones sharing about ``overlap`` frames; every
+    window starts and ends on a multiple of ``unit`` (the cameras' frame steps), the last
+    one on the last frame."""
+    last = n_frames - 1
+    span = max(unit, (window - 1) // unit * unit)
+    stride = max(unit, (window - 1 - overlap) // unit * unit)
+    if span >= last:
+        return [(0, last)]
+    out, a = [], 0
+    while True:
+        e = a + span
+        if e >= last - stride // 2:  # the last window ends on the last frame
+            out.append((max(0, min(a, last - span) // unit * unit), last))
+            return out
+        out.append((a, e))
+        a += stride
+
+
+def solve_windowed(problem, start="auto", options: SolverOptions | None = None, callback=None, *,
+                   window: int = DEFAULT_WINDOW, overlap: int | None = None, faults: bool = True) -> SolveResult:
+    """Solve ``problem`` (a :class:`~pinrecon.problem.ReconstructionProblem` from
+    :func:`~pinrecon.problem.make_problem`) window by window; see the module docstring.
+
+    ``start``: a start's name (:func:`pinrecon.starts.initial_trajectory`) used in every
+    window, or a (T, nq) start trajectory. ``overlap`` defaults to
+    :data:`DEFAULT_OVERLAP` (at most a third of the window). Returns a
+    :class:`~pinrecon.solver.SolveResult` for the whole clip: the stitched trajectory,
+    the whole problem's cost there, the iterations of all windows, and the globals
+    solved in the first window.
+    """
+    t0 = time.perf_counter()
+    views = problem.views
+    if not views:
+        raise InputError("the windowed solve needs a problem built from tracks (make_problem)", field="window")
+    T = problem.n_frames
+    window = int(window)
+    if window < 3:
+        raise InputError(f"a window needs at least 3 frames, got {window}", field="window")
+    overlap = min(DEFAULT_OVERLAP if overlap is None else int(overlap), window // 3)
+    unit = math.lcm(*[int(v.factor) for v in views])
+    plan = window_plan(T, max(window, 2 * unit + 1), overlap, unit)
+    X = np.empty((T, problem.figure.nq))
+    g_solved = None
+    reports, iterations, statuses, fault_reports = [], 0, [], [[] for _ in views]
+    user_window = getattr(callback, "window", None)
+    done_until = -1  # the last frame written to X
+    stopped = False
+    for k, (a, e) in enumerate(plan):
+        c_w = time.process_time()
+        wp = _window_problem(problem, a, e, free_globals=k == 0, g_held=g_solved)
+        if isinstance(start, str):
+            q0 = initial_trajectory(wp, start)
+        else:
+            q0 = np.array(np.asarray(start, float)[a : e + 1])
+        if done_until >= a:  # warm: the frames shared with the previous window
+            q0[: done_until - a + 1] = X[a : done_until + 1]
+        kw = {"g0": wp.g0} if (k == 0 and wp.g0 is not None) else {}
+        res = solve(wp, q0, options, callback, active=wp.active, **kw)
+        if faults:
+            res = fault_stage(wp, res, options, callback)
+            for v, name in enumerate(["faults"] + [f"faults_{n}" for n in wp.camera_names[1:]]):
+                if name in wp.reports:
+                    fault_reports[v].append((a // views[v].factor, wp.reports[name]))
+        if k == 0 and wp.g0 is not None:
+            g_solved = res.g if res.g is not None else wp.g0
+            for key, rep in wp.reports.items():  # e.g. the hypotheses start's report
+                if not key.startswith("faults"):
+                    problem.reports.setdefault(key, rep)
+        _stitch(problem.figure, X, res.x, a, done_until)
+        done_until = e
+        iterations += res.iterations
+        statuses.append(res.status)
+        reports.extend(res.report)
+        rep = WindowReport(k + 1, len(plan), a, e, res.iterations, res.cost, res.status, time.process_time() - c_w)
+        if user_window is not None:
+            user_window(rep)
+        if res.status == "stopped by callback":
+            stopped = True
+            X[e + 1 :] = X[e]  # not solved: the last solved pose held
+            break
+    for v, items in enumerate(fault_reports):
+        if items:
+            key = "faults" if v == 0 else f"faults_{problem.camera_names[v]}"
+            problem.reports[key] = _merge_faults(items, prefix="" if v == 0 else f"{problem.camera_names[v]}_")
+    g_final = g_solved if g_solved is not None else problem.g0
+    blocks = problem.evaluate(X, False) if g_final is None else problem.evaluate(X, False, g_final)
+    costs: dict[str, float] = {}
+    for b in _flat(blocks):
+        costs[b.name] = costs.get(b.name, 0.0) + b.cost
+    status = "stopped by callback" if stopped else (
+        f"windowed ({len(plan)} windows of {window} frames, overlap {overlap}): "
+        + ", ".join(f"{s} x{statuses.count(s)}" for s in sorted(set(statuses))))
+    out = SolveResult(X, float(sum(costs.values())), costs, iterations,
+                      not stopped and all(s in ("ftol", "xtol", "gtol") for s in statuses), status, reports,
+                      time.perf_counter() - t0, float("nan"))
+    out.g = g_final
+    return out
+
+
+def _flat(blocks):
+    for b in blocks:
+        if isinstance(b, (list, tuple)):
+            yield from _flat(b)
+        elif b is not None:
+            yield b
+
+
+def _window_problem(problem, a: int, e: int, *, free_globals: bool, g_held):
+    """The problem of reconstruction frames ``a .. e`` (inclusive): every camera's tracks,
+    the keyframes in range (frames shifted), the same weights and calibration mode."""
+    views = problem.views
+    tracks = [v.tracks.frames(a // v.factor, e // v.factor + 1) for v in views]
+    cams = [v.camera for v in views]
+    keys = None
+    if problem.keyframes is not None:
+        f0 = views[0].factor
+        lo, hi = a // f0, e // f0
+        keys = Keyframes([replace(k, frame=k.frame - lo) for k in problem.keyframes if lo <= k.frame <= hi],
+                         source=getattr(problem.keyframes, "source", None))
+    props = problem.proportions
+    n_p = 0 if props is None else props.n
+    log0 = None if problem.g0 is None or props is None else problem.g0[:n_p]
+    wp = make_problem(
+        problem.figure, tracks[0] if len(views) == 1 else tracks, cams[0] if len(views) == 1 else cams, keys,
+        fps_out=problem.fps, weights=problem.weights, calibrate=problem.calibrate, proportions=props,
+        log_factors0=log0,
+    )
+    if wp.n_frames != e - a + 1:
+        raise InputError(f"window {a}-{e} has {wp.n_frames} frames: the cameras' frame steps do not divide it",
+                         field="window")
+    if problem.g0 is not None and wp.g0 is not None:
+        wp.g0 = np.array(problem.g0 if free_globals or g_held is None else g_held, float)
+    return wp
+
+
+def _stitch(figure, X: np.ndarray, Xw: np.ndarray, a: int, done_until: int) -> None:
+    """Write window solution ``Xw`` (frames ``a ..``) into ``X``: frames after
+    ``done_until`` as they are, the shared ones blended from X's (the previous window's)
+    to ``Xw``'s over the middle half of the overlap."""
+    n = len(Xw)
+    shared = done_until - a + 1 if done_until >= a else 0
+    if shared > 0:
+        u = (np.arange(shared) + 0.5) / shared
+        w = np.clip((u - 0.25) / 0.5, 0.0, 1.0)
+        for i in range(shared):
+            if w[i] >= 1.0:
+                X[a + i] = Xw[i]
+            elif w[i] > 0.0:
+                X[a + i] = figure.interpolate(X[a + i], Xw[i], float(w[i]))
+    X[a + shared : a + n] = Xw[shared:]
+
+
+def _merge_faults(items, prefix: str) -> FaultReport:
+    """One :class:`~pinrecon.faults.FaultReport` from per-window ones ``(first tracks
+    frame, report)``: frames shifted to the clip, a frame reported twice (in an overlap)
+    counted once."""
+    seen_rep, seen_out = set(), set()
+    rf, sg, of, op, oe, th = [], [], [], [], [], []
+    for off, r in items:
+        for f, gain in zip(np.asarray(r.repaired_frames, int) + off, np.asarray(r.swap_gain, float)):
+            if int(f) not in seen_rep:
+                seen_rep.add(int(f))
+                rf.append(int(f))
+                sg.append(float(gain))
+        for f, p, err in zip(np.asarray(r.outlier_frames, int) + off, np.asarray(r.outlier_points, dtype=str),
+                             np.asarray(r.outlier_error_px, float)):
+            if (int(f), str(p)) not in seen_out:
+                seen_out.add((int(f), str(p)))
+                of.append(int(f))
+                op.append(str(p))
+                oe.append(float(err))
+        th.append(float(r.outlier_threshold_px))
+    finite = [x for x in th if np.isfinite(x)]
+    return FaultReport(np.array(rf, int), np.array(sg, float), np.array(of, int), np.array(op, dtype=str),
+                       np.array(oe, float), float(np.median(finite)) if finite else float("nan"), prefix=prefix)

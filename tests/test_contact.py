@@ -1,0 +1,311 @@
+"""Feet on the ground: the contact and floor rows' Jacobians on the manifold, the floor
+estimate and the contact detection on a clip with known contacts, the metrics, and the
+floor/contact stage of ``reconstruct``."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import pinrecon as pr
+from pinrecon.contact import (
+    ContactSettings,
+    Floor,
+    contacts_from_spec,
+    detect_contacts,
+    estimate_floor,
+    foot_keypoints,
+    foot_metrics,
+)
+from pinrecon.errors import InputError, UnknownNameError
+from pinrecon.rows import State
+from pinrecon.rows.contact import ContactHeight, ContactVelocity
+from pinrecon.rows.floor import FloorPenetration
+from pinrecon.synthetic import smooth_motion
+
+T = 5
+
+
+# ----------------------------------------------------------------------------- Jacobians
+@pytest.fixture(scope="module")
+def setting():
+    fig = pr.Figure.human()
+    rng = np.random.default_rng(0)
+    Q = smooth_motion(fig, T, 30.0, seed=1)
+    Q = np.stack([fig.integrate(q, 0.3 * rng.normal(size=fig.nv)) for q in Q])
+    return fig, Q
+
+
+def _rows(fig, Q):
+    k = fig.keypoint_index(["left_ankle", "right_ankle", "left_knee"])
+    C = np.array([[1, 0, 1], [1, 1, 1], [1, 1, 0], [0, 1, 0], [1, 1, 1]], bool)
+    n = np.array([0.1, 1.0, -0.2])
+    h = fig.keypoints(Q)[:, k] @ (n / np.linalg.norm(n))
+    mid = float(np.median(h))  # a floor through the middle: some points below it, some above
+    return {
+        "contact_velocity/3D": ContactVelocity(k, C, 30.0, 0.05, weights=np.full((T, 3), 0.5)),
+        "contact_velocity/horizontal": ContactVelocity(k, C, 30.0, 0.05, normal=n),
+        "contact_height": ContactHeight(k, C, n, 0.3, [0.05, 0.07, 0.4], 0.01),
+        "floor": FloorPenetration(k, np.arange(T), n, mid, [0.0, 0.02, 0.01], 0.01),
+    }
+
+
+def _dense(block, nv):
+    N, m = block.r.shape
+    J = np.zeros((N, m, T * nv))
+    for n in range(N):
+        for i in range(block.frames.shape[1]):
+            t = block.frames[n, i]
+            J[n, :, t * nv : (t + 1) * nv] += block.J[n, i]
+    return J.reshape(N * m, -1)
+
+
+@pytest.mark.parametrize("name", ["contact_velocity/3D", "contact_velocity/horizontal", "contact_height", "floor"])
+def test_row_jacobian_matches_manifold_finite_differences(setting, name):
+    """d r / d v_t at v = 0 against [r(q (+) eps e_i) - r(q (-) eps e_i)] / 2 eps, with
+    q (+) v = pin.integrate(q, v)."""
+    fig, Q = setting
+    row = _rows(fig, Q)[name]
+    b = row.evaluate(State(fig, Q, np.arange(T), True), True)
+    J = _dense(b, fig.nv)
+    fd = np.zeros_like(J)
+    eps = 1e-6
+    for t in range(T):
+        for i in range(fig.nv):
+            dv = np.zeros(fig.nv)
+            dv[i] = eps
+            Qp, Qm = Q.copy(), Q.copy()
+            Qp[t] = fig.integrate(Q[t], dv)
+            Qm[t] = fig.integrate(Q[t], -dv)
+            rp = row.evaluate(State(fig, Qp, np.arange(T), False), False).r.ravel()
+            rm = row.evaluate(State(fig, Qm, np.arange(T), False), False).r.ravel()
+            fd[:, t * fig.nv + i] = (rp - rm) / (2 * eps)
+    assert np.abs(J).max() > 0
+    assert np.abs(J - fd).max() <= 1e-6 * np.abs(J).max(), name
+
+
+def test_rows_residuals_by_hand(setting):
+    fig, Q = setting
+    k = fig.keypoint_index(["left_ankle"])
+    P = fig.keypoints(Q)[:, k[0]]
+    C = np.ones((T, 1), bool)
+    v = ContactVelocity(k, C, 30.0, 0.05).evaluate(State(fig, Q, np.arange(T), False), False)
+    np.testing.assert_allclose(v.r, (P[1:] - P[:-1]) * 30.0 / 0.05)
+    vh = ContactVelocity(k, C, 30.0, 0.05, normal=[0, 2.0, 0]).evaluate(State(fig, Q, np.arange(T), False), False)
+    np.testing.assert_allclose(np.linalg.norm(vh.r, axis=1), np.linalg.norm((P[1:] - P[:-1])[:, [0, 2]], axis=1) * 600)
+    h = ContactHeight(k, C, [0, 1, 0], -0.9, [0.08], 0.01).evaluate(State(fig, Q, np.arange(T), False), False)
+    np.testing.assert_allclose(h.r[:, 0], (P[:, 1] + 0.9 - 0.08) / 0.01)
+    f = FloorPenetration(k, np.arange(T), [0, 1, 0], P[2, 1], [0.0], 0.002).evaluate(
+        State(fig, Q, np.arange(T), False), False)
+    np.testing.assert_allclose(f.r[:, 0], np.minimum(0.0, P[:, 1] - P[2, 1]) / 0.002)
+
+
+# ----------------------------------------------------------------------------- a clip with known contacts
+def stepping_clip(fps=60.0, seconds=4.0, seed=0, noise_m=0.001):
+    """Two feet (heel and toe each) stepping on a tilted floor, with a jump.
+
+    Built here, independently of pinrecon.contact: each foot alternates 0.6 s of stance
+    (heel 3 cm and toe 1 cm above the floor, still) and 0.4 s of swing (0.6 m forward, up
+    to 12 cm high), the right foot half a cycle later; from 2.4 s to 2.9 s both feet are
+    in the air (a 25 cm jump). Returns the world points (T, 4, 3), the contacts (T, 4),
+    the floor's normal and offset, and fps.
+    """
+    rng = np.random.default_rng(seed)
+    n = np.array([np.sin(np.radians(6.0)), np.cos(np.radians(6.0)), 0.0])  # 6 degrees of tilt about z
+    d = 0.3
+    forward = np.array([0.0, 0.0, 1.0])
+    side = np.cross(n, forward)
+    t = np.arange(int(seconds * fps)) / fps
+    heights = np.array([0.03, 0.01, 0.03, 0.01])  # left heel, left toe, right heel, right toe
+    along = np.array([0.0, 0.15, 0.0, 0.15])
+    lateral = np.array([0.1, 0.1, -0.1, -0.1])
+    P = np.zeros((len(t), 4, 3))
+    C = np.zeros((len(t), 4), bool)
+    for foot, phase0 in ((0, 0.0), (1, 0.5)):
+        ph = (t / 1.0 + phase0) % 1.0
+        steps = np.floor(t / 1.0 + phase0)
+        stance = ph < 0.6
+        s = np.clip((ph - 0.6) / 0.4, 0.0, 1.0)
+        pos = 0.6 * (steps + np.where(stance, 0.0, 0.5 - 0.5 * np.cos(np.pi * s)))
+        lift = np.where(stance, 0.0, 0.12 * np.sin(np.pi * s))
+        jump = (t >= 2.4) & (t < 2.9)
+        lift = lift + np.where(jump, 0.25 * np.sin(np.pi * (t - 2.4) / 0.5), 0.0)
+        for j in (2 * foot, 2 * foot + 1):
+            base = (pos + along[j])[:, None] * forward + lateral[j] * side
+            P[:, j] = base + (d + heights[j] + lift)[:, None] * n
+            C[:, j] = stance & ~jump
+    P += rng.normal(0.0, noise_m, P.shape)
+    return P, C, n, d, fps
+
+
+def test_floor_estimate_on_the_stepping_clip():
+    P, C, n, d, fps = stepping_clip()
+    up_guess = np.array([0.0, 1.0, 0.0])  # 6 degrees off the true normal
+    fl = estimate_floor(P, up=up_guess, fps=fps)
+    # the feet spread along z only: the tilt about z (in x) is not seen -> along z it must be right
+    tilt_seen = np.degrees(np.arcsin(abs(fl.n @ np.array([0.0, 0.0, 1.0]))))
+    assert tilt_seen < 0.5
+    # a floor perpendicular to the prior up, through the toes' height at (0, ., 0)
+    assert abs(fl.n @ up_guess - 1.0) < 1e-6
+    # walked twice, side by side 1.2 m apart: the planted points span the plane, the whole tilt is found
+    fl2 = estimate_floor(_two_lanes(P, n), up=up_guess, fps=fps)
+    ang = np.degrees(np.arccos(np.clip(fl2.n @ n, -1, 1)))
+    assert ang < 0.3, ang
+    assert abs(fl2.offset_m - (d + 0.01)) < 0.003  # through the planted toes (1 cm above the plane)
+
+
+def _two_lanes(P, n):
+    """The stepping clip walked twice, the second time 1.2 m to the side on the same plane."""
+    u = np.cross(n, [0.0, 0.0, 1.0])
+    u /= np.linalg.norm(u)
+    return np.concatenate([P, P + 1.2 * u])
+
+
+def test_contact_detection_finds_the_known_contacts():
+    P, C, n, d, fps = stepping_clip()
+    fl = Floor(tuple(n), d)
+    found = detect_contacts(P, fl, fps)
+    # away from the switches (3 frames either side) detection agrees with the truth
+    switch = np.zeros_like(C)
+    for j in range(C.shape[1]):
+        for t in np.where(np.diff(C[:, j].astype(int)) != 0)[0]:
+            switch[max(0, t - 3) : t + 4, j] = True
+    agree = (found == C)[~switch].mean()
+    assert agree > 0.97, agree
+    # never in contact in the air: mid-swing and during the jump
+    t = np.arange(len(P)) / fps
+    assert not found[(t >= 2.5) & (t < 2.8)].any()
+    # and the same with the floor estimated from the clip (given the tilted up direction)
+    fl_est = estimate_floor(P, up=n, fps=fps)
+    assert abs(fl_est.offset_m - (d + 0.01)) < 0.005  # through the planted toes
+    found2 = detect_contacts(P, fl_est, fps)
+    assert (found2 == C)[~switch].mean() > 0.97
+
+
+def test_contact_detection_ignores_the_unseen_direction():
+    """A planted point whose depth wanders (as a one-camera reconstruction's does) is in
+    contact when that direction is declared unseen."""
+    P, C, n, d, fps = stepping_clip()
+    Pw = P.copy()
+    Pw[..., 0] += 0.02 * np.sin(np.arange(len(P)) / fps * 2 * np.pi * 3.0)[:, None]  # up to 38 cm/s along x
+    fl = Floor(tuple(n), d)
+    assert detect_contacts(Pw, fl, fps).sum() < 0.5 * C.sum()
+    assert (detect_contacts(Pw, fl, fps, unseen=[1.0, 0.0, 0.0]) == C).mean() > 0.9
+
+
+def test_foot_metrics_by_hand():
+    fl = Floor((0.0, 1.0, 0.0), 0.5)
+    P = np.zeros((4, 1, 3))
+    P[:, 0, 0] = [0.0, 0.01, 0.03, 0.03]  # x: moves 1 cm, 2 cm, 0 cm per frame
+    P[:, 0, 1] = [0.5, 0.49, 0.52, 0.5]  # heights 0, -1 cm, +2 cm, 0
+    C = np.array([[True], [True], [True], [False]])
+    m = foot_metrics(P, fl, C, fps=10.0)
+    assert m["skating_mps"] == pytest.approx((0.1 + 0.2) / 2)
+    assert m["penetration_m"] == pytest.approx(0.01 / 4)
+    assert m["penetration_max_m"] == pytest.approx(0.01)
+    assert m["floating_m"] == pytest.approx(0.02 / 3)
+    assert m["contact_frames"] == 3
+
+
+# ----------------------------------------------------------------------------- floors and specs
+def test_floor_specs_and_errors():
+    assert Floor.parse("y=0") == Floor((0.0, 1.0, 0.0), 0.0)
+    f = Floor.parse("z=0.05")
+    assert f.normal == (0.0, 0.0, 1.0) and f.offset_m == pytest.approx(0.05)
+    f = Floor.parse("-z=1")
+    assert f.normal == (0.0, 0.0, -1.0) and f.height([0, 0, 0.5]) == pytest.approx(0.5)
+    f = Floor.parse("0, 2, 0, 0.2")
+    assert f.normal == (0.0, 1.0, 0.0) and f.offset_m == pytest.approx(0.1)
+    assert Floor.from_array(f.as_array()) == f
+    for bad in ("w=0", "1,2", "0,0,0,1", "floor"):
+        with pytest.raises(InputError, match="floor"):
+            Floor.parse(bad)
+
+
+def test_contacts_from_spec():
+    names = ["left_ankle", "right_ankle"]
+    C = contacts_from_spec({"left_ankle": [[1, 2]], "right_ankle": [[0, 0], [3, 3]]}, names, 4)
+    np.testing.assert_array_equal(C, [[0, 1], [1, 0], [1, 0], [0, 1]])
+    # on a grid twice as fine: frames between two contact frames are in contact
+    C2 = contacts_from_spec({"left_ankle": [[1, 2]]}, names, 7, factor=2)
+    np.testing.assert_array_equal(C2[:, 0], [0, 0, 1, 1, 1, 0, 0])
+    with pytest.raises(UnknownNameError, match="left_ankle"):
+        contacts_from_spec({"nose": [[0, 1]]}, names, 4)
+    with pytest.raises(InputError, match="outside"):
+        contacts_from_spec({"left_ankle": [[0, 9]]}, names, 4)
+    with pytest.raises(InputError, match="shape"):
+        contacts_from_spec(np.zeros((3, 2), bool), names, 4)
+
+
+def test_foot_keypoints_of_the_figures():
+    assert foot_keypoints(pr.Figure.human()) == ["left_ankle", "right_ankle"]
+    assert foot_keypoints(pr.Figure.human("joints")) == ["left_ankle", "left_toe", "right_ankle", "right_toe"]
+    assert foot_keypoints(pr.Figure.human(), ["left_ankle", "nose"]) == ["left_ankle"]
+
+
+def test_settings_are_checked():
+    with pytest.raises(InputError, match="sigma_velocity_mps"):
+        ContactSettings(sigma_velocity_mps=0.0)
+
+
+# ----------------------------------------------------------------------------- the pipeline
+@pytest.fixture(scope="module")
+def walk_on_the_floor():
+    """The bundled walk at 30 fps, its own skeleton, 22 body points with 1 px noise,
+    keyframes every 8 frames: without and with the floor and contact rows."""
+    from pinrecon.synthetic import body_keypoints, bundled_motion, point_keyframes, project_tracks, side_camera
+
+    fig, q, fps = bundled_motion("walk")
+    q, fps = q[::4], fps / 4
+    names = body_keypoints(fig)
+    cam = side_camera(q, 45.0)
+    tracks = project_tracks(fig, q, cam, names, fps=fps, noise_px=1.0, seed=1)
+    keys = point_keyframes(fig, q, range(0, len(q), 8), names, sigma_m=0.02, seed=2)
+    base = pr.reconstruct(fig, tracks, cam, keys)
+    feet = pr.reconstruct(fig, tracks, cam, keys, floor="auto", contact="auto")
+    return fig, q, fps, names, base, feet
+
+
+def test_reconstruct_with_the_floor_keeps_the_feet_still(walk_on_the_floor, tmp_path):
+    fig, q, fps, names, base, res = walk_on_the_floor
+    m = res.foot_metrics()
+    assert m is not None and m["contact_frames"] > 0.2 * len(q)
+    assert m["skating_mps"] < 0.02 and m["penetration_max_m"] < 0.01
+    # the same contact frames in the reconstruction without the rows slide far more
+    from pinrecon.contact import FootContact
+
+    feet = FootContact.from_extras(res.extras)
+    P0 = base.keypoints3d[:, fig.keypoint_index(feet.names)]
+    m0 = foot_metrics(P0, feet.floor, feet.contact, fps)
+    assert m0["skating_mps"] > 3 * m["skating_mps"]
+    # the floor found under the walk is the clip's (Y up, the CMU floor within 2 degrees)
+    assert feet.floor.n[1] > np.cos(np.radians(2.0))
+    text = res.summary()
+    assert "floor:" in text and "skating" in text
+    res.save(tmp_path / "r.npz")
+    back = pr.load_result(tmp_path / "r.npz")
+    assert back.foot_metrics() == pytest.approx(m)
+    assert "skating" in back.summary()
+
+
+def test_reconstruct_default_has_no_floor(walk_on_the_floor):
+    *_, base, _ = walk_on_the_floor
+    assert base.foot_metrics() is None and "floor:" not in base.summary()
+
+
+def test_reconstruct_with_a_given_floor_and_contacts():
+    from pinrecon.synthetic import project_tracks, side_camera
+
+    fig = pr.Figure.human()
+    q = smooth_motion(fig, 12, 30.0, seed=3)
+    cam = side_camera(q, 45.0)
+    tracks = project_tracks(fig, q, cam, fps=30.0, noise_px=0.5, seed=4)
+    low = float(fig.keypoints(q)[:, fig.keypoint_index(["left_ankle", "right_ankle"]), 1].min())
+    res = pr.reconstruct(fig, tracks, cam, floor=f"y={low - 0.07}", contact={"left_ankle": [[2, 5]]})
+    feet = pr.contact.FootContact.from_extras(res.extras)
+    assert feet.floor.offset_m == pytest.approx(low - 0.07)
+    assert feet.contact[:, feet.names.index("left_ankle")].sum() == 4
+    P = res.keypoints3d[2:6, fig.keypoint_index(["left_ankle"])[0]]
+    assert np.linalg.norm(np.diff(P[:, [0, 2]], axis=0), axis=1).max() < 0.002
+    with pytest.raises(InputError, match="floor"):
+        pr.reconstruct(fig, tracks, cam, floor="sideways")
