@@ -5,8 +5,9 @@ it: its first 1.5 s filmed through a perspective camera 45 degrees from side-on,
 run through a 2D detector (the 12 COCO-17 body points with 2 px noise, 2 % of the
 points thrown 20-80 px away at low confidence, 1 % of the frames with left and right
 swapped, 3 % missing: :func:`pinrecon.synthetic.detector_faults`), reconstructed with the
-generic ``Figure.human()`` and no keyframe at all: the default path (lengths calibrated
-when the pipeline can, the multi-hypothesis start, the robust loss, swap repair).
+generic ``Figure.human()`` and no keyframe at all: the default path (the multi-hypothesis
+start, the robust loss, swap repair; lengths are not calibrated without 3D keyframes, where
+one view cannot tell a limb's length from its depth).
 
 **The lab setting** (``OUT/``): the same walk through an orthographic camera, its body
 joints with 1 px noise and 3 % missing, a few noisy 3D point keyframes (2 cm, every
@@ -84,8 +85,6 @@ class DemoSummary:
 def run_video(out_dir, *, frames: int | None = None, seed: int = 0, callback=None) -> dict:
     """The user's path (module docstring): writes ``out_dir/{tracks.json, camera.json,
     result.npz}`` and returns its scores against the clip."""
-    import inspect
-
     from . import metrics
     from .figure import Figure
     from .reconstruct import reconstruct
@@ -118,7 +117,7 @@ def run_video(out_dir, *, frames: int | None = None, seed: int = 0, callback=Non
     thr = float(x.get("hypothesis_threshold", np.inf))
     return {
         "frames": len(q), "fps": fps, "time_s": dt,
-        "calibrated": "calibrate" in inspect.signature(reconstruct).parameters,
+        "calibrated": bool(res.calibration) and res.calibration.get("mode", "none") != "none",
         "mpjpe": metrics.mpjpe(Pe, P), "pa": metrics.pa_mpjpe(Pe, P), "dz": metrics.mpjpe_depth_aligned(Pe, P, camera),
         "flips": 100.0 * metrics.flip_rate(Pe, P, camera, segs),
         "repaired": len(set(np.asarray(x.get("repaired_frames", [])).tolist())
