@@ -36,7 +36,7 @@ from scipy.linalg.lapack import dpbtrf as _pbtrf
 from scipy.linalg.lapack import dpbtrs as _pbtrs
 from scipy.linalg.lapack import dtbtrs as _tbtrs
 
-__all__ = ["ActiveNormalEquations", "BandedNormalEquations", "ArrowheadFactor"]
+__all__ = ["ActiveNormalEquations", "ArrowheadFactor", "BandedNormalEquations"]
 
 #: frames written as slices when a row block's frames form at most this many runs
 _MAX_RUNS = 16
@@ -202,6 +202,9 @@ class ActiveNormalEquations:
         if len(blocks) != len(self.plans) or not all(p.matches(b) for p, b in zip(self.plans, blocks)):
             self._plan(blocks)  # the rows changed their structure: plan again
         T, na = self.T, self.na
+        if T == 1:  # one frame (a start's pose fits): a small dense H, few NumPy calls
+            g = self._assemble_one_frame(blocks)
+            return g, (self._border(blocks, n_g) if n_g else None)
         self.ab.fill(0.0)
         g = np.zeros((T, na))
         D0, diag = None, {}
@@ -224,11 +227,19 @@ class ActiveNormalEquations:
             first = p.pairs[0] if len(p.pairs) == 1 else None
             if D0 is None and first is not None and first[5] == "D0" and first[4].runs is not None \
                     and isinstance(first[6][0], slice):
-                # the first within-frame product (the 2D measurements): straight into D0
-                D0 = self._d0()
+                # the first within-frame product (the 2D measurements): straight into D0, whose
+                # other frames (and columns) are the only ones to zero
+                D0 = self._d0(zero=False)
+                runs, cs = first[4].runs, first[6]
+                covered = np.zeros(T, bool)
+                for a, b, _ in runs:
+                    covered[a:b] = True
+                D0[~covered] = 0.0
+                if cs[0] != slice(0, na):  # partial columns: zero the rest of the covered frames
+                    D0[covered] = 0.0
                 Jt = J[:, 0].transpose(0, 2, 1)
-                for a, b, o in first[4].runs:
-                    np.matmul(Jt[o : o + b - a], J[o : o + b - a, 0], out=D0[(slice(a, b),) + first[6]])
+                for a, b, o in runs:
+                    np.matmul(Jt[o : o + b - a], J[o : o + b - a, 0], out=D0[(slice(a, b),) + cs])
                 continue
             # every pair's J_i^T J_j at once: JJ[n, i c + x, j c + y] = (J_i^T J_j)[x, y]
             Jcat = J.transpose(0, 2, 1, 3).reshape(J.shape[0], J.shape[2], s * c) if s > 1 else J[:, 0]
@@ -265,16 +276,39 @@ class ActiveNormalEquations:
         border = self._border(blocks, n_g) if n_g else None
         return g.reshape(-1), border
 
-    def _d0(self) -> np.ndarray:
-        """The zeroed within-frame accumulator (T, na, na), allocated once per solve."""
-        return self._buffer("D0", (self.T, self.na, self.na))
+    def _assemble_one_frame(self, blocks) -> np.ndarray:
+        na = self.na
+        H = np.zeros((na, na))
+        g = np.zeros(na)
+        for b, p in zip(blocks, self.plans):
+            if p.empty:
+                continue
+            cc = p.cc
+            J = b.J.sum(axis=1) if b.J.shape[1] > 1 else b.J[:, 0]  # every frame of every row group is 0
+            if p.diagonal:  # J (N, c)
+                Jd, rd = (J, b.r) if p.keep is None else (J[:, p.keep], b.r[:, p.keep])
+                H[cc, cc] += np.einsum("nc,nc->c", Jd, Jd)
+                g[cc] += np.einsum("nc,nc->c", Jd, rd)
+            else:  # J (N, m, c)
+                Jb = J if p.keep is None else J[..., p.keep]
+                Jf = Jb.reshape(-1, Jb.shape[-1])
+                H[np.ix_(cc, cc)] += Jf.T @ Jf
+                g[cc] += b.r.reshape(-1) @ Jf
+        self.ab.fill(0.0)
+        self._view(0)[0] += np.triu(H)  # S[0, c, a] = H[a, c] for a >= c (symmetric H)
+        return g
 
-    def _buffer(self, key, shape) -> np.ndarray:
+    def _d0(self, zero: bool = True) -> np.ndarray:
+        """The within-frame accumulator (T, na, na), allocated once per solve; zeroed
+        unless ``zero`` is false (the caller then writes or zeroes every entry)."""
+        return self._buffer("D0", (self.T, self.na, self.na), zero)
+
+    def _buffer(self, key, shape, zero: bool = True) -> np.ndarray:
         """A zeroed scratch array, allocated once per solve (no fresh pages every iteration)."""
         buf = self._buffers.get(key)
         if buf is None or buf.shape != shape:
             buf = self._buffers[key] = np.zeros(shape)
-        else:
+        elif zero:
             buf.fill(0.0)
         return buf
 

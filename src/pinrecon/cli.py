@@ -96,6 +96,17 @@ class _Progress:
             print(line, file=sys.stderr, flush=True)
         return None
 
+    def window(self, rep):
+        """One solved window of a long clip (:class:`pinrecon.windowed.WindowReport`), with
+        the time left at the pace so far."""
+        if self.quiet:
+            return
+        elapsed = time.perf_counter() - self.t0
+        left = elapsed / rep.index * (rep.count - rep.index)
+        print(("\r" if self.tty else "") + f"{rep}  (elapsed {elapsed:.0f}s, about {left:.0f}s left)".ljust(78),
+              file=sys.stderr, flush=True)
+        self.dirty = False
+
     def close(self):
         if not self.quiet and self.dirty:
             print(file=sys.stderr)
@@ -139,7 +150,7 @@ def cmd_reconstruct(args) -> int:
     progress = _Progress(args.quiet, args.max_iterations)
     res = reconstruct(
         fig, tracks, cam, kf, fps_out=args.fps_out, weights=Weights(**wkw), options=opts, callback=progress, seed=args.seed,
-        calibrate=args.calibrate, **_feet_from_args(args),
+        calibrate=args.calibrate, window=args.window, **_feet_from_args(args),
     )
     progress.close()
     res.save(args.out)
@@ -365,6 +376,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--acc-joints", type=float, help="smoothing: joint acceleration sd, rad/s^2")
     r.add_argument("--sigma-limits", type=float, help="joint-limit barrier sd, rad")
     r.add_argument("--max-iterations", type=int, default=100)
+    r.add_argument("--window", type=int, help="solve in overlapping windows of this many frames, in bounded memory "
+                   "(default: windows of 2000 frames past 10000 frames; 0: one batch solve)")
     r.add_argument("--floor", help="feet on the ground: 'auto' (estimated under the feet), 'y=0' / 'z=0', or "
                    "'nx,ny,nz,d' (the plane n.p = d, n up); adds the contact rows (see --contact)")
     r.add_argument("--contact", help="foot contacts: 'auto' (from low height and speed; the default with --floor), "

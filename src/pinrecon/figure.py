@@ -29,7 +29,7 @@ import pinocchio as pin
 
 from ._resources import example_robot_data_robots, model_path
 from .errors import InputError, UnknownNameError
-from .kinematics import joint_kinds, keypoint_jacobians_from_world, point_kinematics, support_mask
+from . import kinematics
 
 __all__ = ["Figure", "Keypoint", "load_keypoint_map", "parse_keypoint_entries", "xml_file"]
 
@@ -407,8 +407,8 @@ class Figure:
         self._kp_p_joint = p_joint
         self._kp_unique_joints, self._kp_joint_slot = np.unique(joint_ids, return_inverse=True)
         self._kp_joint_list = [int(j) for j in self._kp_unique_joints]
-        self.keypoint_support = support_mask(model, joint_ids)  # (K, nv): the joints moving each keypoint
-        self._kin_kinds = joint_kinds(model)
+        self.keypoint_support = kinematics.support_mask(model, joint_ids)  # (K, nv) bool
+        self._kin_kinds = kinematics.joint_kinds(model)
 
     def support_mask(self, keypoint_names: Iterable[str], tol: float = 1e-9) -> np.ndarray:
         """(nv,) bool: tangent entries that move at least one of the named keypoints.
@@ -501,7 +501,7 @@ class Figure:
         q, v = np.asarray(q, float), np.asarray(v, float)
         if q.ndim == 1:
             return pin.integrate(self.model, q, v)
-        return np.stack([pin.integrate(self.model, a, b) for a, b in zip(q, v)])
+        return kinematics.integrate_trajectory(self.model, self._kin_kinds, q, v)  # NumPy over frames
 
     def difference(self, q0: np.ndarray, q1: np.ndarray) -> np.ndarray:
         """``q1 (-) q0``: the tangent v with ``q0 (+) v = q1`` (trajectories allowed)."""
@@ -580,8 +580,8 @@ class Figure:
         """Keypoints (T, K, 3) along a trajectory (T, nq) and the WORLD joint Jacobian
         (T, 6, nv) (``None`` without ``jacobian``): vectorised over frames when the joints
         allow it (:mod:`pinrecon.kinematics`), else Pinocchio frame by frame."""
-        return point_kinematics(self.model, self.data, self._kin_kinds, Q, self._kp_joint_list,
-                                self._kp_joint_slot, self._kp_p_joint, jacobian)
+        return kinematics.point_kinematics(self.model, self.data, self._kin_kinds, Q, self._kp_joint_list,
+                                           self._kp_joint_slot, self._kp_p_joint, jacobian)
 
     def keypoints(self, q: np.ndarray) -> np.ndarray:
         """World positions of the keypoints: (K, 3) for q (nq,), (T, K, 3) for (T, nq)."""
@@ -595,7 +595,7 @@ class Figure:
         q = self.check_q(q)
         single = q.ndim == 1
         p, J_world = self.world_kinematics(q[None] if single else q)
-        J = keypoint_jacobians_from_world(p, J_world, self.keypoint_support)
+        J = kinematics.keypoint_jacobians_from_world(p, J_world, self.keypoint_support)
         return (p[0], J[0]) if single else (p, J)
 
     def frame_placement(self, q: np.ndarray, frame: str) -> pin.SE3:

@@ -25,16 +25,17 @@ import numpy as np
 import pinocchio as pin
 
 __all__ = [
-    "joint_kinds",
-    "batch_joint_kinematics",
-    "loop_joint_kinematics",
-    "joint_kinematics",
-    "point_kinematics",
-    "keypoint_positions",
-    "keypoint_jacobians_from_world",
-    "point_jacobian_factors",
-    "support_mask",
     "BATCH_MIN_FRAMES",
+    "batch_joint_kinematics",
+    "joint_kinds",
+    "joint_kinematics",
+    "keypoint_jacobians_from_world",
+    "keypoint_positions",
+    "loop_joint_kinematics",
+    "point_jacobian_factors",
+    "point_kinematics",
+    "support_mask",
+    "integrate_trajectory",
 ]
 
 #: below this many frames Pinocchio frame by frame is cheaper than the NumPy recursion
@@ -186,9 +187,8 @@ def loop_joint_kinematics(model, data, Q, joints, jacobian: bool):
         else:
             pin.forwardKinematics(model, data, Q[t])
         oMi = data.oMi
-        for u, j in enumerate(sel):
-            M = oMi[j]
-            R[t, u], p[t, u] = M.rotation, M.translation
+        H = np.array([oMi[j].homogeneous for j in sel]).reshape(len(sel), 4, 4)  # one call per joint
+        R[t], p[t] = H[:, :3, :3], H[:, :3, 3]
     return R, p, Jw
 
 
@@ -268,3 +268,45 @@ def support_mask(model, joint_ids) -> np.ndarray:
             if s > 0:
                 mask[i, model.idx_vs[s] : model.idx_vs[s] + model.nvs[s]] = True
     return mask
+
+
+def integrate_trajectory(model, kinds, Q, V):
+    """``pin.integrate`` frame by frame, ``Q (+) V`` for (T, nq) and (T, nv): NumPy over
+    frames when every joint is a free flyer (``q * exp6(v)``, the local twist, quaternion
+    re-normalised to first order as Pinocchio does) or a 1-dof joint (``q + v``), else
+    Pinocchio per frame."""
+    Q, V = np.asarray(Q, float), np.asarray(V, float)
+    if kinds is None or len(Q) < BATCH_MIN_FRAMES:
+        return np.stack([pin.integrate(model, a, b) for a, b in zip(Q, V)])
+    out = Q.copy()
+    one = [j for j in range(1, model.njoints) if kinds[j][0] != "free"]
+    out[:, [model.idx_qs[j] for j in one]] += V[:, [model.idx_vs[j] for j in one]]  # 1-dof joints: q + v
+    for j in range(1, model.njoints):
+        iq, iv = model.idx_qs[j], model.idx_vs[j]
+        if kinds[j][0] != "free":
+            continue
+        nu, w = V[:, iv : iv + 3], V[:, iv + 3 : iv + 6]
+        th2 = np.einsum("ta,ta->t", w, w)
+        th = np.sqrt(th2)
+        small = th < 1e-4
+        ths = np.where(small, 1.0, th)
+        a = np.where(small, 0.5 - th2 / 24.0, (1.0 - np.cos(ths)) / ths**2)  # V(w) = I + a [w]x + b [w]x^2
+        b = np.where(small, 1.0 / 6.0 - th2 / 120.0, (ths - np.sin(ths)) / ths**3)
+        wxn = np.cross(w, nu)
+        t = nu + a[:, None] * wxn + b[:, None] * np.cross(w, wxn)
+        h = np.where(small, 0.5 - th2 / 48.0, np.sin(0.5 * ths) / ths)  # exp3 as a quaternion
+        qe = np.concatenate([h[:, None] * w, np.cos(0.5 * th)[:, None]], axis=1)
+        q0 = Q[:, iq + 3 : iq + 7]
+        x0, y0, z0, w0 = q0.T
+        R = np.stack([
+            np.stack([1 - 2 * (y0 * y0 + z0 * z0), 2 * (x0 * y0 - z0 * w0), 2 * (x0 * z0 + y0 * w0)], -1),
+            np.stack([2 * (x0 * y0 + z0 * w0), 1 - 2 * (x0 * x0 + z0 * z0), 2 * (y0 * z0 - x0 * w0)], -1),
+            np.stack([2 * (x0 * z0 - y0 * w0), 2 * (y0 * z0 + x0 * w0), 1 - 2 * (x0 * x0 + y0 * y0)], -1),
+        ], -2)
+        out[:, iq : iq + 3] = Q[:, iq : iq + 3] + np.einsum("tab,tb->ta", R, t)
+        xe, ye, ze, we = qe.T
+        qn = np.stack([w0 * xe + x0 * we + y0 * ze - z0 * ye, w0 * ye - x0 * ze + y0 * we + z0 * xe,
+                       w0 * ze + x0 * ye - y0 * xe + z0 * we, w0 * we - x0 * xe - y0 * ye - z0 * ze], axis=1)
+        qn *= np.where(np.einsum("ta,ta->t", qn, q0) < 0.0, -1.0, 1.0)[:, None]
+        out[:, iq + 3 : iq + 7] = qn * (0.5 * (3.0 - np.einsum("ta,ta->t", qn, qn)))[:, None]
+    return out

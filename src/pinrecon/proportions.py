@@ -39,7 +39,12 @@ import pinocchio as pin
 
 from .errors import InputError, UnknownNameError
 from .figure import Figure, Keypoint
-from .kinematics import joint_kinds, joint_kinematics, keypoint_jacobians_from_world, point_kinematics
+from .kinematics import (
+    joint_kinds,
+    joint_kinematics,
+    keypoint_jacobians_from_world,
+    point_kinematics,
+)
 
 __all__ = ["Segment", "Proportions", "mirror_name", "HUMAN_GROUPS", "KEYPOINT_SEGMENT_SUFFIX"]
 

@@ -8,19 +8,21 @@ A *problem* provides:
 * ``retract(x, dx) -> x'`` (``pin.integrate`` frame by frame for figures).
 
 Each iteration assembles the normal equations ``H = J^T J`` and ``g = J^T r`` directly
-in block-banded form: a row group that touches frames t_i and t_j adds ``J_i^T J_j`` to
-block (t_i, t_j), so H has block bandwidth equal to the widest frame span of any row
-(2 for constant-velocity smoothing). The scalar half-bandwidth is computed from the
-blocks' column structure (diagonal blocks across frames only couple equal tangent
-indices), stored in LAPACK's lower band format and factored with a banded Cholesky
-(``scipy.linalg.cholesky_banded``). No dense (T nv)^2 matrix is ever formed; memory
-and time are linear in T.
+in block-banded form over the *active* tangent entries (held ones are not unknowns):
+a row group that touches frames t_i and t_j adds ``J_i^T J_j`` to block (t_i, t_j), so
+H has block bandwidth equal to the widest frame span of any row (2 for
+constant-velocity smoothing). The scalar half-bandwidth is computed from the blocks'
+column structure (diagonal blocks across frames only couple equal tangent indices);
+:class:`~pinrecon.banded.ActiveNormalEquations` writes H into a Fortran-ordered LAPACK
+lower band buffer reused by every iteration, factored in place with a banded Cholesky
+(``dpbtrf``). No dense (T nv)^2 matrix is ever formed; memory and time are linear in T.
 
 Damping is Levenberg-Marquardt's ``(H + lambda D) dx = -g`` with ``D`` the (floored)
 diagonal of H (the paper's stabilising ``kI``, scaled and made adaptive with
-Nielsen's update), optionally with geodesic acceleration. A step is accepted only if it lowers the cost and gives finite
-residuals; otherwise it is rejected, said so in the report, and the damping grows.
-The returned trajectory is never NaN.
+Nielsen's update), with a line search along the step (``SolverOptions.line_search``)
+or, optionally, geodesic acceleration. A step is accepted only if it lowers the cost and
+gives finite residuals; otherwise it is rejected, said so in the report, and the
+damping grows. The returned trajectory is never NaN.
 
 **Global unknowns.** A problem may also have a few time-invariant unknowns ``g``
 (``solve(..., g0=...)``; the problem is then evaluated as ``evaluate(x, jacobian, g)``
@@ -55,11 +57,13 @@ class SolverOptions:
     """Termination and damping settings.
 
     ftol : stop when an accepted step lowers the cost by less than ``ftol * cost``. The
-        cost is a whitened least-squares cost (in nats), so 1e-5 stops when steps gain a
-        tiny fraction of a nat on typical problems; the tail Levenberg-Marquardt spends
-        creeping along the flat valleys of limb twists beyond that changed the mean
-        per-joint error by 0.2 mm (11.4 -> 11.2 mm) on the 1000-frame benchmark while
-        tripling the time. Use 1e-6 or lower for a strict solve.
+        cost is a whitened least-squares cost (in nats). With the line search (below) the
+        default 1e-4 ends at a lower cost than plain Levenberg-Marquardt did at 1e-5, in
+        fewer iterations, on the 1000-frame human benchmark (10 iterations, cost 6189.9,
+        11.3 mm mean per-joint error; was 13, 6190.6, 11.3 mm) and on the 1123-frame CMU
+        dance from the same start (13 iterations, 7344.0, 8.9 mm; was 21, 7444.5, 8.9 mm);
+        ``bench/bench_accuracy.py`` prints the same errors. Use 1e-6 or lower for a strict
+        solve.
     gtol : stop when ``max |g| <= gtol * (1 + cost)`` (first-order optimality).
     xtol : stop when ``|dx| <= xtol * (sqrt(T nv) + |dx|)``.
     max_iterations : cap on linearisations (accepted or not).
@@ -69,17 +73,23 @@ class SolverOptions:
         of the residuals along the step corrects it for the curvature of the valley it
         runs along; steps whose correction is larger than ``geodesic_alpha`` times the step
         are rejected (``geodesic_h``: the relative finite-difference step). Off by default:
-        on the 1000-frame benchmark it costs 60 % more time for the same result (2.1 vs
-        1.3 s); on fast motion it can find better minima (the run clip: 44 vs 51 mm mean
+        on the 1000-frame benchmark it costs more time for the same result (0.95 vs 0.78 s
+        CPU; 2.1 vs 1.3 s before the speed work); on fast motion it can find better minima (the run clip: 44 vs 51 mm mean
         per-joint error over three views, though not in every view), so try it there.
     blas_threads : BLAS/LAPACK threads while solving (``None`` leaves them alone). The
         work is many small matrix operations plus one banded Cholesky; OpenBLAS threads
         that spin-wait for a busy core made one 1000-frame solve 30 times slower here
-        (89 s instead of 3 s on a loaded 2-core machine), so the default is 1.
+        (89 s instead of 3 s on a loaded 2-core machine), and two threads made the dance's
+        banded Cholesky 20 times slower in CPU time on the loaded machine, so the default is 1.
+    line_search : the cost along a step is modelled as the parabola through f(0),
+        f'(0) = g.dx and f(1); when the step failed, or the parabola's minimum t* lies
+        clearly beyond it (t* > 1.25: the Gauss-Newton model too pessimistic), the point
+        t* dx is evaluated too and kept if lower. A failed step is so rescued by
+        backtracking, without a new factorisation. ``line_search_max`` caps t*.
     """
 
     max_iterations: int = 100
-    ftol: float = 1e-5
+    ftol: float = 1e-4
     gtol: float = 1e-10
     xtol: float = 1e-10
     damping: float = 1e-3
@@ -282,33 +292,32 @@ def _solve(
             break
         it += 1
         why, dx, dg = None, None, None
-        if dx is None:
-            if not band_ready:  # assemble the band (the last factorisation overwrote it)
-                g, border = linearise(blocks)
-                gg = None if border is None else border[2]
-            ab = normal.ab
-            diag = normal.diagonal()
-            dmax = float(diag.max()) if diag.size else 0.0
+        if not band_ready:  # assemble the band (the last factorisation overwrote it)
+            g, border = linearise(blocks)
+            gg = None if border is None else border[2]
+        ab = normal.ab
+        diag = normal.diagonal()
+        dmax = float(diag.max()) if diag.size else 0.0
+        if n_g:
+            diag_g = np.diag(border[1]).copy()
+            dmax = max(dmax, float(diag_g.max()))
+        dscale = np.maximum(diag, opt.diag_floor * max(dmax, 1e-300))
+        ab[0] += lam * dscale
+        dscale_g = None
+        fac = None
+        try:
             if n_g:
-                diag_g = np.diag(border[1]).copy()
-                dmax = max(dmax, float(diag_g.max()))
-            dscale = np.maximum(diag, opt.diag_floor * max(dmax, 1e-300))
-            ab[0] += lam * dscale
-            dscale_g = None
-            fac = None
-            try:
-                if n_g:
-                    dscale_g = np.maximum(diag_g, opt.diag_floor * max(dmax, 1e-300))
-                    fac = ArrowheadFactor(ab, border[0], border[1] + lam * np.diag(dscale_g))
-                    dx, dg = fac.solve(-g, -gg)
-                else:
-                    fac = ArrowheadFactor(ab)
-                    dx, _ = fac.solve(-g)
-                if not (np.all(np.isfinite(dx)) and (dg is None or np.all(np.isfinite(dg)))):
-                    why, fac = "non-finite step", None
-            except LinAlgError:
-                why, dx, dg, fac = "factorisation failed", None, None, None
-            band_ready = False
+                dscale_g = np.maximum(diag_g, opt.diag_floor * max(dmax, 1e-300))
+                fac = ArrowheadFactor(ab, border[0], border[1] + lam * np.diag(dscale_g))
+                dx, dg = fac.solve(-g, -gg)
+            else:
+                fac = ArrowheadFactor(ab)
+                dx, _ = fac.solve(-g)
+            if not (np.all(np.isfinite(dx)) and (dg is None or np.all(np.isfinite(dg)))):
+                why, fac = "non-finite step", None
+        except LinAlgError:
+            why, dx, dg, fac = "factorisation failed", None, None, None
+        band_ready = False
         v_lm, vg_lm = dx, dg  # the Levenberg-Marquardt step, whose decrease the quadratic model predicts
         if why is None and opt.geodesic_acceleration:
             # second directional derivative of the residuals along v = dx, by finite
@@ -347,10 +356,10 @@ def _solve(
             finite = bool(np.isfinite(new_cost) and np.all(np.isfinite(x_new)))
             if finite and opt.line_search and not opt.geodesic_acceleration and slope < 0:
                 # the cost along the step through f(0), f'(0) and f(1) is a parabola: when the
-                # step is clearly too short or too long, its minimum t* is tried as well
+                # step failed or is clearly too short, its minimum t* is tried as well
                 curv = 2.0 * (new_cost - cost - slope)
                 t_star = float(np.clip(-slope / curv if curv > 0 else opt.line_search_max, 0.1, opt.line_search_max))
-                if abs(t_star - 1.0) > 0.25:
+                if not rho > 1e-4 or t_star > 1.25:  # rejected (backtrack), or clearly too short
                     x_t = problem.retract(x, normal.expand(t_star * dx))
                     g_t = None if gv is None else (gv if dg is None else gv + t_star * dg)
                     blocks_t = evaluate(x_t, g_t, True)

@@ -1,7 +1,7 @@
 """Long clips in bounded memory: the batch solve over overlapping windows of frames.
 
 The batch solve's memory is linear in the number of frames (the band of ``J^T J``, its
-factor and the Jacobians: about 50 KB a frame for the human, see ``bench/bench_engine.py``),
+factor and the Jacobians: about 70 KB a frame for the human, see ``bench/bench_engine.py``),
 so an hour of motion does not fit. :func:`solve_windowed` solves the same problem window
 by window, in order:
 
@@ -15,7 +15,8 @@ by window, in order:
 * its solution is stitched on: inside the overlap the two solutions are blended
   geodesically (``pin.interpolate``), the weight of the new one going from 0 to 1 over
   the middle half of the overlap, away from both windows' ends where a window knows least;
-* global unknowns (a calibration) are solved in the first window and held after it;
+* global unknowns (a calibration) are solved once on a leading stretch of the clip
+  (:data:`CALIBRATION_FRAMES`, or the first window if longer), then held in every window;
 * the fault stage (:func:`pinrecon.faults.fault_stage`: left/right swaps repaired,
   outliers) runs in every window; its reports are merged.
 
@@ -45,8 +46,15 @@ from .solver import SolveResult, SolverOptions, solve
 from .starts import initial_trajectory
 from .tracks import Keyframes
 
-__all__ = ["solve_windowed", "window_plan", "windowed_length", "WindowReport", "AUTO_WINDOW_FRAMES",
-           "DEFAULT_WINDOW", "DEFAULT_OVERLAP"]
+__all__ = [
+    "AUTO_WINDOW_FRAMES",
+    "DEFAULT_OVERLAP",
+    "DEFAULT_WINDOW",
+    "WindowReport",
+    "solve_windowed",
+    "window_plan",
+    "windowed_length",
+]
 
 #: clips longer than this many reconstruction frames are solved in windows by default
 AUTO_WINDOW_FRAMES = 10_000
@@ -54,6 +62,8 @@ AUTO_WINDOW_FRAMES = 10_000
 DEFAULT_WINDOW = 2_000
 #: frames two consecutive windows share (at most a third of the window)
 DEFAULT_OVERLAP = 200
+#: frames of the leading stretch whose solve gives the global unknowns (a calibration)
+CALIBRATION_FRAMES = 2_000
 
 
 @dataclass
@@ -85,27 +95,22 @@ def windowed_length(n_frames: int, window: int | None) -> int | None:
         raise InputError(f"must be a number of frames (0: no windows), got {window!r}", field="window")
     if window == 0 or window >= n_frames:
         return None
-    return int(window)
+    return window
 
 
 def window_plan(n_frames: int, window: int, overlap: int, unit: int = 1) -> list[tuple[int, int]]:
-    """Windows ``(first, last)`` (inclusive) covering frames ``0 .. n_frames - 1``, each
-    about ``window`` frames long, consecutive ones sharing about ``overlap`` frames; every
-    window starts and ends on a multiple of ``unit`` (the cameras' frame steps), the last
-    one on the last frame."""
+    """Windows ``(first, last)`` (inclusive) covering frames ``0 .. n_frames - 1``: each
+    ``window`` frames long (rounded down to a multiple of ``unit``, the cameras' frame
+    step, plus one), starting on multiples of ``unit``, as few as let consecutive ones
+    share at least ``overlap`` frames, spread evenly; the last one ends on the last frame."""
     last = n_frames - 1
     span = max(unit, (window - 1) // unit * unit)
-    stride = max(unit, (window - 1 - overlap) // unit * unit)
     if span >= last:
         return [(0, last)]
-    out, a = [], 0
-    while True:
-        e = a + span
-        if e >= last - stride // 2:  # the last window ends on the last frame
-            out.append((max(0, min(a, last - span) // unit * unit), last))
-            return out
-        out.append((a, e))
-        a += stride
+    stride = max(unit, (span - overlap) // unit * unit)
+    count = math.ceil((last - span) / stride) + 1
+    starts = [round(k * (last - span) / (count - 1) / unit) * unit for k in range(count)]
+    return [(a, min(a + span, last)) if k < count - 1 else (starts[-1], last) for k, a in enumerate(starts)]
 
 
 def solve_windowed(problem, start="auto", options: SolverOptions | None = None, callback=None, *,
@@ -118,7 +123,7 @@ def solve_windowed(problem, start="auto", options: SolverOptions | None = None, 
     :data:`DEFAULT_OVERLAP` (at most a third of the window). Returns a
     :class:`~pinrecon.solver.SolveResult` for the whole clip: the stitched trajectory,
     the whole problem's cost there, the iterations of all windows, and the globals
-    solved in the first window.
+    solved on the leading stretch.
     """
     t0 = time.perf_counter()
     views = problem.views
@@ -133,28 +138,34 @@ def solve_windowed(problem, start="auto", options: SolverOptions | None = None, 
     plan = window_plan(T, max(window, 2 * unit + 1), overlap, unit)
     X = np.empty((T, problem.figure.nq))
     g_solved = None
+    if problem.g0 is not None:  # the globals, from a leading stretch, then held in every window
+        stretch = (min(T - 1, max(plan[0][1], CALIBRATION_FRAMES - 1)) // unit) * unit
+        wp = _window_problem(problem, 0, stretch, free_globals=True, g_held=None)
+        q0 = initial_trajectory(wp, start) if isinstance(start, str) else np.array(np.asarray(start, float)[: stretch + 1])
+        res = solve(wp, q0, options, callback, active=wp.active, g0=wp.g0)
+        g_solved = res.g if res.g is not None else wp.g0
+        for key, rep in wp.reports.items():  # e.g. the hypotheses start's report
+            problem.reports.setdefault(key, rep)
     reports, iterations, statuses, fault_reports = [], 0, [], [[] for _ in views]
     user_window = getattr(callback, "window", None)
     done_until = -1  # the last frame written to X
     stopped = False
     for k, (a, e) in enumerate(plan):
         c_w = time.process_time()
-        wp = _window_problem(problem, a, e, free_globals=k == 0, g_held=g_solved)
+        wp = _window_problem(problem, a, e, free_globals=False, g_held=g_solved)
         if isinstance(start, str):
             q0 = initial_trajectory(wp, start)
         else:
             q0 = np.array(np.asarray(start, float)[a : e + 1])
         if done_until >= a:  # warm: the frames shared with the previous window
             q0[: done_until - a + 1] = X[a : done_until + 1]
-        kw = {"g0": wp.g0} if (k == 0 and wp.g0 is not None) else {}
-        res = solve(wp, q0, options, callback, active=wp.active, **kw)
+        res = solve(wp, q0, options, callback, active=wp.active)
         if faults:
             res = fault_stage(wp, res, options, callback)
             for v, name in enumerate(["faults"] + [f"faults_{n}" for n in wp.camera_names[1:]]):
                 if name in wp.reports:
                     fault_reports[v].append((a // views[v].factor, wp.reports[name]))
-        if k == 0 and wp.g0 is not None:
-            g_solved = res.g if res.g is not None else wp.g0
+        if k == 0:
             for key, rep in wp.reports.items():  # e.g. the hypotheses start's report
                 if not key.startswith("faults"):
                     problem.reports.setdefault(key, rep)

@@ -61,7 +61,7 @@ class JointKeyframes(RowKind):
         self.frames = np.array([it[0] for it in self.items], dtype=int)
         # items that set only 1-dof Euclidean joints: difference q - f, derivative 1 (no Pinocchio call)
         q_of_v = {m.idx_vs[j]: m.idx_qs[j] for j in range(1, m.njoints) if m.nqs[j] == 1 and m.nvs[j] == 1}
-        pos = {col: k for k, col in enumerate(self.cols)}
+        pos = self._pos = {col: k for k, col in enumerate(self.cols)}
         self._euclid = [
             (np.array([q_of_v[c] for c in sc]), np.array([pos[c] for c in sc]))
             if trans is None and all(c in q_of_v for c in sc) else None
@@ -71,9 +71,17 @@ class JointKeyframes(RowKind):
     def evaluate(self, state: State, jacobian: bool = True) -> RowBlock:
         m = self.figure.model
         N, c = len(self.items), len(self.cols)
+        if all(e is not None for e in self._euclid):  # 1-dof Euclidean joints only: a diagonal block
+            r = np.zeros((N, c))
+            Jd = np.zeros((N, 1, c)) if jacobian else None
+            for n, ((frame, inv_sigma, f, _, _), (qi, idx)) in enumerate(zip(self.items, self._euclid)):
+                r[n, idx] = (state.Q[frame, qi] - f[qi]) * inv_sigma
+                if jacobian:
+                    Jd[n, 0, idx] = inv_sigma
+            return RowBlock(self.frames[:, None], r, Jd, self.cols, self.name, diagonal=True)
         r = np.zeros((N, c))
         J = np.zeros((N, 1, c, c)) if jacobian else None
-        pos = {col: k for k, col in enumerate(self.cols)}
+        pos = self._pos
         for n, (frame, inv_sigma, f, set_cols, trans_only) in enumerate(self.items):
             q = state.Q[frame]
             fast = self._euclid[n]
