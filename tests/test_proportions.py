@@ -234,3 +234,16 @@ def test_a_urdf_with_a_continuous_joint_and_a_fixed_frame():
     p_ref, J_ref = props.calibrated_figure(theta).keypoint_jacobians(Q)
     np.testing.assert_allclose(p, p_ref, atol=1e-12)
     np.testing.assert_allclose(J, J_ref, atol=1e-12)
+
+
+def test_no_groups_is_the_figure_as_given():
+    """A Proportions with no group (nothing to scale) gives the figure's own keypoints and
+    an empty derivative (was an IndexError)."""
+    fig = pr.Figure.human()
+    prop = Proportions(fig, groups={})
+    q = np.stack([fig.neutral(), fig.random_configuration(np.random.default_rng(3))])
+    assert prop.n == 0
+    np.testing.assert_array_equal(prop.keypoints(np.zeros(0), q), fig.keypoints(q))
+    P, Jw, dP = prop.world_kinematics(np.zeros(0), q)
+    np.testing.assert_allclose(P, fig.keypoints(q), atol=1e-12)
+    assert dP.shape == (2, fig.K, 3, 0)

@@ -18,102 +18,29 @@ Conventions (see ``docs/derivations.md``):
 
 from __future__ import annotations
 
-import io
 import os
+import xml.etree.ElementTree as ET
 from collections.abc import Iterable, Mapping
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
 
+from . import kinematics
 from ._resources import example_robot_data_robots, model_path
 from .errors import InputError, UnknownNameError
-from . import kinematics
+from .figure_files import (
+    Keypoint,
+    load_keypoint_map,
+    parse_keypoint_entries,
+    scale_urdf_origins,
+    urdf_joint_limits,
+    xml_file,
+)
 
 __all__ = ["Figure", "Keypoint", "load_keypoint_map", "parse_keypoint_entries", "xml_file"]
 
 ROOT_JOINT = "root_joint"
-
-
-@dataclass(frozen=True)
-class Keypoint:
-    """A named point fixed in a Pinocchio frame: ``p_world = oMf * offset``."""
-
-    name: str
-    frame: str
-    offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
-
-
-def parse_keypoint_entries(entries, file=None) -> list[Keypoint]:
-    """Keypoints from a keypoint map's ``keypoints`` object: ``{name: {"frame": f,
-    "offset": [x, y, z]}}`` (a bare string is a frame name with zero offset).
-
-    Used by :func:`load_keypoint_map`, by result files (which embed the map) and by
-    :meth:`Figure.from_bvh`. Bad entries raise :class:`~pinrecon.errors.InputError`
-    naming ``file`` and the keypoint.
-    """
-    if isinstance(entries, Mapping):
-        items = list(entries.items())
-    else:
-        raise InputError("must be an object {name: {frame, offset}}", file=file, field="keypoints")
-    out = []
-    for name, spec in items:
-        field = f"keypoints.{name}"
-        if isinstance(spec, str):
-            spec = {"frame": spec}
-        if not isinstance(spec, Mapping) or "frame" not in spec:
-            raise InputError("needs a 'frame' (and optional 'offset')", file=file, field=field)
-        offset = spec.get("offset", (0.0, 0.0, 0.0))
-        try:
-            off = np.asarray(offset, dtype=float)
-        except (TypeError, ValueError):
-            raise InputError("offset must be 3 numbers", file=file, field=field) from None
-        if off.shape != (3,) or not np.all(np.isfinite(off)):
-            raise InputError(f"offset must be 3 finite numbers, got {offset!r}", file=file, field=field)
-        out.append(Keypoint(str(name), str(spec["frame"]), tuple(float(x) for x in off)))
-    return out
-
-
-def load_keypoint_map(path: str | os.PathLike) -> list[Keypoint]:
-    """Read a keypoint map JSON: ``{"keypoints": {name: {"frame": f, "offset": [x, y, z]}}}``."""
-    from .io.jsonfile import read_json
-
-    path = Path(path)
-    data = read_json(path)
-    if not isinstance(data, Mapping) or "keypoints" not in data:
-        raise InputError("missing top-level 'keypoints' object", file=path, field="keypoints")
-    return parse_keypoint_entries(data["keypoints"], file=path)
-
-
-def xml_file(xml: str | bytes) -> io.BytesIO:
-    """A file object lxml (and yourdfpy) accept even when the text carries an encoding
-    declaration (lxml refuses such a declaration in a ``str``)."""
-    return io.BytesIO(xml.encode() if isinstance(xml, str) else xml)
-
-
-def _xml_text(xml: str | bytes) -> str:
-    """URDF text without the XML declaration (bytes from yourdfpy decoded)."""
-    text = xml.decode() if isinstance(xml, bytes) else xml
-    if text.lstrip().startswith("<?xml"):
-        text = text.split("?>", 1)[1].lstrip()
-    return text
-
-
-def _limits_from_urdf_xml(xml: str) -> dict[str, tuple[float, float]]:
-    """Joint name -> (lower, upper) for revolute/prismatic joints whose URDF sets both."""
-    import yourdfpy
-
-    robot = yourdfpy.URDF.load(
-        xml_file(xml), build_scene_graph=False, load_meshes=False, build_collision_scene_graph=False
-    ).robot
-    out = {}
-    for j in robot.joints:
-        if j.type in ("revolute", "prismatic") and j.limit is not None:
-            lo, hi = j.limit.lower, j.limit.upper
-            if lo is not None and hi is not None and lo < hi:
-                out[j.name] = (float(lo), float(hi))
-    return out
 
 
 def _human_stature_m(figure) -> float:
@@ -198,8 +125,8 @@ class Figure:
             raise InputError(f"URDF does not parse: {msg}", file=where) from None
         if limits == "urdf":
             try:
-                limits = _limits_from_urdf_xml(xml)
-            except Exception as exc:  # yourdfpy raises a variety of types
+                limits = urdf_joint_limits(xml)
+            except (SyntaxError, ValueError) as exc:  # ElementTree's ParseError, a limit that is no number
                 raise InputError(f"URDF does not parse: {exc}", file=where) from None
         if keypoints is None:
             keypoints = [Keypoint(model.names[j], model.names[j]) for j in range(1, model.njoints)]
@@ -276,15 +203,9 @@ class Figure:
             h = float(height) if isinstance(height, (int, float)) and not isinstance(height, bool) else float("nan")
             if not (0.3 <= h <= 3.0):
                 raise InputError(f"must be a stature in metres between 0.3 and 3, got {height!r}", field="height")
-            from lxml import etree
-
             s = h / _human_stature_m(fig)
-            root_xml = etree.fromstring(fig.urdf_xml.encode())
-            for origin in root_xml.iter("origin"):
-                if origin.get("xyz") is not None and origin.getparent().tag == "joint":
-                    origin.set("xyz", " ".join(repr(s * float(v)) for v in origin.get("xyz").split()))
             kps = [Keypoint(k.name, k.frame, tuple(s * float(v) for v in k.offset)) for k in fig.keypoints_def]
-            fig = cls.from_urdf_string(etree.tostring(root_xml, encoding="unicode"), kps, root=root, name="human",
+            fig = cls.from_urdf_string(fig.scaled_urdf(s), kps, root=root, name="human",
                                        source=fig.source, limits=fig.limits_dict(), meta={**fig.meta, "height_m": h})
         return fig
 
@@ -635,26 +556,15 @@ class Figure:
         """URDF text with the origin translations of the named URDF joints scaled.
 
         ``joint_scales`` maps URDF joint names to factors, or is one factor for all joints.
-        Edited with yourdfpy.
+        Edited with the standard library's ElementTree: only the ``xyz`` of each named
+        joint's ``<origin>`` changes, everything else in the file is kept.
         """
-        import yourdfpy
-
         if self.urdf_xml is None:
             raise InputError("this figure has no URDF to edit", field="urdf")
-        urdf = yourdfpy.URDF.load(xml_file(self.urdf_xml), build_scene_graph=False, load_meshes=False)
-        names = [j.name for j in urdf.robot.joints]
-        if isinstance(joint_scales, Mapping):
-            unknown = [n for n in joint_scales if n not in names]
-            if unknown:
-                raise UnknownNameError("URDF joint", unknown, names, field="joint_scales")
-            scales = dict(joint_scales)
-        else:
-            scales = {n: float(joint_scales) for n in names}
-        for j in urdf.robot.joints:
-            if j.name in scales and j.origin is not None:
-                j.origin = np.array(j.origin, float)
-                j.origin[:3, 3] *= scales[j.name]
-        return _xml_text(urdf.write_xml_string())
+        if not isinstance(joint_scales, Mapping):
+            names = [j.get("name") for j in ET.parse(xml_file(self.urdf_xml)).getroot().findall("joint")]
+            joint_scales = {n: float(joint_scales) for n in names if n is not None}
+        return scale_urdf_origins(self.urdf_xml, joint_scales)
 
     def rescaled(self, joint_scales: Mapping[str, float] | float, keypoint_scales: Mapping[str, float] | None = None) -> Figure:
         """A new figure whose URDF joint origins (and optionally keypoint offsets) are scaled."""

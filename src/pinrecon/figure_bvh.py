@@ -32,6 +32,7 @@ Construction (see ``docs/formats.md``, "BVH figures"):
 from __future__ import annotations
 
 import math
+import xml.etree.ElementTree as ET
 from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
@@ -69,6 +70,10 @@ class BvhFigureData:
     meta: dict
 
 
+def _numbers(v) -> str:
+    return " ".join(repr(float(x)) for x in v)
+
+
 def _link_name(j: BvhJoint) -> str:
     return j.name
 
@@ -83,8 +88,6 @@ def bvh_figure_data(clip: BvhClip, length_scale: float = 1.0, *, lock: Iterable[
     lock : BVH joint names whose channels are welded at zero (fixed joints), or
         ``"static"`` for every joint :func:`pinrecon.io.bvh.static_joints` finds.
     """
-    import yourdfpy
-
     length_scale = float(length_scale)
     if not (length_scale > 0 and math.isfinite(length_scale)):
         raise InputError(f"must be a positive number, got {length_scale}", field="length_scale")
@@ -99,8 +102,10 @@ def bvh_figure_data(clip: BvhClip, length_scale: float = 1.0, *, lock: Iterable[
     if clip.joints[0].name in lock:
         raise InputError("the root joint cannot be locked", file=clip.path, field="lock")
 
-    links = [yourdfpy.Link(name=clip.joints[0].name)]
-    ujoints = []
+    robot_name = Path(clip.path).stem if clip.path else "bvh_figure"
+    robot = ET.Element("robot", name=robot_name)
+    links = [clip.joints[0].name]
+    ujoints = []  # (name, type, parent, child, offset, axis, limit)
     keypoints = []
     for idx, j in enumerate(clip.joints):
         if idx > 0:
@@ -108,30 +113,19 @@ def bvh_figure_data(clip: BvhClip, length_scale: float = 1.0, *, lock: Iterable[
             offset = np.asarray(j.offset, float) * length_scale
             chain = [] if j.name in lock else list(j.position_channels) + list(j.rotation_channels)
             if not chain:
-                origin = np.eye(4)
-                origin[:3, 3] = offset
-                ujoints.append(
-                    yourdfpy.Joint(f"{j.name}_weld", "fixed", parent_link, j.name, origin=origin)
-                )
-                links.append(yourdfpy.Link(name=j.name))
+                ujoints.append((f"{j.name}_weld", "fixed", parent_link, j.name, offset, None, None))
+                links.append(j.name)
             else:
                 prev = parent_link
                 for c_i, ch in enumerate(chain):
                     child = j.name if c_i == len(chain) - 1 else f"{j.name}__{ch}"
-                    origin = np.eye(4)
-                    if c_i == 0:
-                        origin[:3, 3] = offset
                     axis = np.eye(3)["XYZ".index(ch[0])]
                     if ch.endswith("rotation"):
-                        jt = "revolute"
-                        limit = yourdfpy.Limit(effort=0.0, velocity=0.0, lower=-_WIDE_LIMIT, upper=_WIDE_LIMIT)
+                        jt, limit = "revolute", _WIDE_LIMIT
                     else:
-                        jt = "prismatic"
-                        limit = yourdfpy.Limit(effort=0.0, velocity=0.0, lower=-1e3, upper=1e3)
-                    ujoints.append(
-                        yourdfpy.Joint(f"{j.name}_{ch}", jt, prev, child, origin=origin, axis=axis, limit=limit)
-                    )
-                    links.append(yourdfpy.Link(name=child))
+                        jt, limit = "prismatic", 1e3
+                    ujoints.append((f"{j.name}_{ch}", jt, prev, child, offset if c_i == 0 else np.zeros(3), axis, limit))
+                    links.append(child)
                     prev = child
         keypoints.append((j.name, _link_name(j), (0.0, 0.0, 0.0)))
     for i, end_name in clip.end_site_names():
@@ -139,13 +133,22 @@ def bvh_figure_data(clip: BvhClip, length_scale: float = 1.0, *, lock: Iterable[
         k = int(end_name[len(j.name) + 4 :] or 1) - 1
         keypoints.append((end_name, _link_name(j), tuple(np.asarray(j.end_sites[k]) * length_scale)))
 
-    robot_name = Path(clip.path).stem if clip.path else "bvh_figure"
-    robot = yourdfpy.Robot(name=robot_name, links=links, joints=ujoints)
-    # str without an XML declaration (yourdfpy's write_xml_string returns declared bytes)
-    from lxml import etree
-
-    urdf = yourdfpy.URDF(robot, build_scene_graph=False, load_meshes=False)
-    xml = etree.tostring(urdf.write_xml(), encoding="unicode", pretty_print=True)
+    # URDF written with the standard library's ElementTree, the layout yourdfpy writes
+    # (links, then joints: parent, child, origin, axis, limit); yourdfpy itself costs about
+    # a second of import (trimesh) on every BVH figure built
+    for name in links:
+        ET.SubElement(robot, "link", name=name)
+    for name, jt, parent, child, offset, axis, limit in ujoints:
+        el = ET.SubElement(robot, "joint", name=name, type=jt)
+        ET.SubElement(el, "parent", link=parent)
+        ET.SubElement(el, "child", link=child)
+        ET.SubElement(el, "origin", xyz=_numbers(offset), rpy="0.0 0.0 0.0")
+        if axis is not None:
+            ET.SubElement(el, "axis", xyz=_numbers(axis))
+        if limit is not None:
+            ET.SubElement(el, "limit", effort="0.0", velocity="0.0", lower=repr(-float(limit)), upper=repr(float(limit)))
+    ET.indent(robot)
+    xml = ET.tostring(robot, encoding="unicode") + "\n"
     meta = {
         "bvh": {
             "names": clip.names,

@@ -56,10 +56,10 @@ def urdf_with_limits(xml: str, limits) -> str:
     """URDF text with the ``<limit lower upper>`` of the named joints set to ``limits``
     (radians; joints the URDF does not have, or without a ``<limit>`` element, are left),
     so that a figure's saved URDF carries the limits it was given."""
-    from lxml import etree
+    import xml.etree.ElementTree as ET
 
-    root = etree.fromstring(xml.encode() if isinstance(xml, str) else xml)
-    for joint in root.iter("joint"):
+    root = ET.fromstring(xml.encode() if isinstance(xml, str) else xml)
+    for joint in root.findall("joint"):
         name = joint.get("name")
         if name in limits:
             lim = joint.find("limit")
@@ -67,4 +67,4 @@ def urdf_with_limits(xml: str, limits) -> str:
                 lo, hi = limits[name]
                 lim.set("lower", repr(float(lo)))
                 lim.set("upper", repr(float(hi)))
-    return etree.tostring(root, encoding="unicode")
+    return ET.tostring(root, encoding="unicode")

@@ -39,6 +39,7 @@ import pinocchio as pin
 
 from .errors import InputError, UnknownNameError
 from .figure import Figure, Keypoint
+from .figure_files import scale_urdf_origins
 from .kinematics import (
     joint_kinds,
     joint_kinematics,
@@ -46,7 +47,7 @@ from .kinematics import (
     point_kinematics,
 )
 
-__all__ = ["Segment", "Proportions", "mirror_name", "HUMAN_GROUPS", "KEYPOINT_SEGMENT_SUFFIX"]
+__all__ = ["HUMAN_GROUPS", "KEYPOINT_SEGMENT_SUFFIX", "Proportions", "Segment", "mirror_name"]
 
 KEYPOINT_SEGMENT_SUFFIX = ".keypoints"
 
@@ -323,7 +324,9 @@ class Proportions:
         key = theta.tobytes()
         if key == self._cache_key:
             return self._cache
-        seg_s = np.where(self._seg_group >= 0, np.exp(theta[np.maximum(self._seg_group, 0)]), 1.0)
+        grouped = self._seg_group >= 0
+        seg_s = np.ones(len(self._seg_group))
+        seg_s[grouped] = np.exp(theta[self._seg_group[grouped]])  # ungrouped segments (all, with no group) stay
         frame_s = np.ones(len(self._P0))
         end_s = np.ones(len(self._P0))
         for s, f in zip(self.segments, seg_s):
@@ -497,23 +500,3 @@ def _bone_groups(segment_names: Sequence[str], symmetric: bool) -> dict[str, lis
         else:
             groups[name] = [name]
     return groups
-
-
-def scale_urdf_origins(urdf_xml: str, joint_factors: Mapping[str, float]) -> str:
-    """URDF text with the origin translation (``xyz``) of the named joints multiplied by
-    their factors (full precision; rotations and everything else untouched)."""
-    from lxml import etree
-
-    text = urdf_xml.encode() if isinstance(urdf_xml, str) else urdf_xml
-    root = etree.fromstring(text, parser=etree.XMLParser(remove_blank_text=False))
-    joints = {j.get("name"): j for j in root.iter("joint")}
-    unknown = [n for n in joint_factors if n not in joints]
-    if unknown:
-        raise UnknownNameError("URDF joint", unknown, list(joints), field="joint_factors")
-    for n, f in joint_factors.items():
-        origin = joints[n].find("origin")
-        if origin is None or origin.get("xyz") is None:
-            continue
-        xyz = np.array([float(v) for v in origin.get("xyz").split()]) * float(f)
-        origin.set("xyz", " ".join(repr(float(v)) for v in xyz))
-    return etree.tostring(root, encoding="unicode")

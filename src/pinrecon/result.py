@@ -225,29 +225,28 @@ class Result:
         limited joints, and its keypoint map to ``<path stem>.keypoints.json`` next to it.
         Read it back with ``Figure.from_urdf(path, "<stem>.keypoints.json")`` (CLI:
         ``--figure path --keypoints <stem>.keypoints.json``). Returns the two paths."""
+        import xml.etree.ElementTree as ET
         from pathlib import Path
-
-        from lxml import etree
 
         from .io.atomic import atomic_write_text
 
         fig = self.figure
         if fig is None or not fig.urdf_xml:
             raise InputError("the result has no figure with a URDF to save", field="figure")
-        root = etree.fromstring(fig.urdf_xml.encode())
+        root = ET.fromstring(fig.urdf_xml.encode())
         limits = fig.limits_dict()
-        for joint in root.iter("joint"):
+        for joint in root.findall("joint"):
             lim = limits.get(joint.get("name"))
             if lim is None or joint.get("type") not in ("revolute", "prismatic"):
                 continue
             el = joint.find("limit")
             if el is None:
-                el = etree.SubElement(joint, "limit", effort="0", velocity="0")
+                el = ET.SubElement(joint, "limit", effort="0", velocity="0")
             el.set("lower", repr(float(lim[0])))
             el.set("upper", repr(float(lim[1])))
         path = Path(path)
         kp_path = path.with_name(path.stem + ".keypoints.json")
-        atomic_write_text(path, etree.tostring(root, encoding="unicode"))
+        atomic_write_text(path, ET.tostring(root, encoding="unicode"))
         atomic_write_text(kp_path, json.dumps(fig.keypoint_map_dict(), indent=1))
         return [str(path), str(kp_path)]
 

@@ -40,16 +40,16 @@ from .fit_types import GroupFit
 from .groups import estimate_noise_sigma, fit_planar_group
 
 __all__ = [
+    "Calibration",
+    "ScaleEstimate",
     "SegmentLength",
     "SegmentLengths",
-    "ScaleEstimate",
-    "Calibration",
+    "calibrate_figure",
+    "estimate_scale",
     "figure_segments",
     "kinematic_triples",
-    "segment_lengths",
-    "estimate_scale",
-    "calibrate_figure",
     "model_lengths",
+    "segment_lengths",
     "track_array",
 ]
 
@@ -533,12 +533,11 @@ def calibrate_figure(
     g = _wmedian(ratio, L0)
     seg_scale = dict(zip(segs, ratio))
     # URDF joint -> factor
-    import yourdfpy
+    import xml.etree.ElementTree as ET
 
     from ..figure import xml_file
 
-    urdf = yourdfpy.URDF.load(xml_file(figure.urdf_xml), build_scene_graph=False, load_meshes=False)
-    all_joints = [j.name for j in urdf.robot.joints]
+    all_joints = [j.get("name") for j in ET.parse(xml_file(figure.urdf_xml)).getroot().findall("joint")]
     owner: dict[str, tuple[str, str]] = {}
     for sg in segs:
         for jn in _segment_joints(figure, sg):
