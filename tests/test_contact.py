@@ -309,3 +309,46 @@ def test_reconstruct_with_a_given_floor_and_contacts():
     assert np.linalg.norm(np.diff(P[:, [0, 2]], axis=0), axis=1).max() < 0.002
     with pytest.raises(InputError, match="floor"):
         pr.reconstruct(fig, tracks, cam, floor="sideways")
+
+
+# ----------------------------------------------------------------------------- softened no-sliding rows, trimmed contacts
+def test_contact_velocity_rows_soften_where_the_point_is_seen_to_move():
+    from pinrecon.contact import FootContact, contact_rows
+
+    fig = pr.Figure.human()
+    names = ["left_ankle", "right_ankle"]
+    C = np.array([[1, 1], [1, 1], [1, 0], [0, 0]], bool)
+    seen = np.array([[0.00, 0.30], [0.10, 0.30], [0.30, 0.30], [0.30, 0.30]])  # m/s
+    feet = FootContact(Floor((0.0, 1.0, 0.0), 0.0), names, C, np.zeros(2), np.zeros(2),
+                       extra={"seen_speed_mps": seen})
+    s = ContactSettings(sigma_velocity_mps=0.02, velocity_slack=1.0, slack_from_mps=0.05)
+    vel = [r for r in contact_rows(fig, feet, 50.0, s) if isinstance(r, ContactVelocity)][0]
+    # pairs (0,1) and (1,2); by hand: mean seen speed of the pair, 5 cm/s free, then added in quadrature
+    # left (0,1): 0.05 -> sigma 0.02; left (1,2): 0.20 -> sqrt(0.02^2 + 0.15^2); right (0,1): 0.30 -> sqrt(0.02^2 + 0.25^2)
+    expect = 50.0 / np.array([[0.02, np.hypot(0.02, 0.25)], [np.hypot(0.02, 0.15), np.inf]])  # right: no contact at 2
+    np.testing.assert_allclose(vel.frames, [[0, 1], [1, 2]])
+    np.testing.assert_allclose(vel.sqrt_w, expect, rtol=1e-12)
+    # velocity_slack = 0: the uniform pin of sigma_velocity_mps
+    s0 = ContactSettings(sigma_velocity_mps=0.02, velocity_slack=0.0)
+    vel0 = [r for r in contact_rows(fig, feet, 50.0, s0) if isinstance(r, ContactVelocity)][0]
+    np.testing.assert_allclose(vel0.sqrt_w, [[2500.0, 2500.0], [2500.0, 0.0]])
+
+
+def test_contact_detection_trim_shortens_each_contact_at_both_ends():
+    P, C, n, d, fps = stepping_clip()
+    fl = Floor(tuple(n), d)
+    full = detect_contacts(P, fl, fps)
+    trimmed = detect_contacts(P, fl, fps, ContactSettings(trim_s=2.0 / fps))
+    T = len(P)
+    for j in range(C.shape[1]):
+        runs_full = np.flatnonzero(np.diff(np.r_[0, full[:, j].astype(int), 0]))
+        runs_trim = np.flatnonzero(np.diff(np.r_[0, trimmed[:, j].astype(int), 0]))
+        a_full, b_full = runs_full[::2], runs_full[1::2]
+        a_trim, b_trim = runs_trim[::2], runs_trim[1::2]
+        assert len(a_full) == len(a_trim)
+        # 2 frames off each end, except at the clip's own first and last frame
+        np.testing.assert_array_equal(a_trim, np.where(a_full > 0, a_full + 2, a_full))
+        np.testing.assert_array_equal(b_trim, np.where(b_full < T, b_full - 2, b_full))
+    assert not (trimmed & ~full).any()
+    # still within the true stances (3 frames of slack either side of a switch)
+    assert (trimmed & ~C).sum() <= 3 * 2 * C.shape[1] * 4

@@ -147,15 +147,26 @@ def as_floor(floor) -> Floor | str:
 class ContactSettings:
     """Weights of the contact rows and thresholds of the contact detection.
 
-    Weights (standard deviations; chosen on ``bench/bench_contact.py``, see its table):
-    the zero-velocity rows are stiff (1 cm/s: a planted point does not slide, and softer
-    rows did not lower the error: 12.1 and 12.3 mm against 12.4 mm on the lab walk at
-    3 and 1 cm/s), the height rows soft (2 cm: a planted ankle rises as the foot rolls;
-    1 cm raised the lab spin's error by 0.2 mm), the barrier stiff but only below the
-    point's lowest height (acting on every frame's lowest 5 % lifted the spin's error from
-    11.5 to 16.5 mm).
+    Weights (standard deviations; chosen on ``bench/bench_contact.py``, see its table).
+    A planted foot point is not a pin: CMU's planted ankles and toes creep 1-3 cm over a
+    stance (the joint centres move as the foot rolls) and move 15-40 cm/s in the frames
+    at heel strike and toe-off that a detector counts as contact. The zero-velocity rows
+    are therefore stiff in mid-stance (2 cm/s) and soft where the foot point is seen to
+    move: the row of frames (t, t + 1) has the standard deviation
+    ``sqrt(sigma_velocity_mps^2 + (velocity_slack * max(0, v_seen - slack_from_mps))^2)``
+    with ``v_seen`` the point's speed in the directions the data see (a single camera:
+    without its viewing direction; all of it otherwise), averaged over the pair: what
+    moves in the image at more than 5 cm/s is taken to move as much in depth. On the lab
+    walk this gives skating 1.7 cm/s and 0.2 mm less error than no rows, where a pin at
+    1 cm/s gave 1.1 cm/s and 1.6 mm more error, 5 cm/s without slack 2.3 cm/s and
+    0.7 mm more (the same detection). The height rows are soft (2 cm: a planted ankle
+    rises as the foot rolls; 1 cm raised the lab spin's error by 0.2 mm), the barrier
+    stiff but only below the point's lowest height (acting on every frame's lowest 5 %
+    lifted the spin's error from 11.5 to 16.5 mm).
 
-    sigma_velocity_mps : speed of a planted foot point, m/s (zero-velocity rows).
+    sigma_velocity_mps : speed of a planted foot point in mid-stance, m/s (zero-velocity rows).
+    velocity_slack, slack_from_mps : the softening above (``velocity_slack = 0``: a
+        uniform ``sigma_velocity_mps``).
     sigma_height_m : height of a planted foot point about its contact height, metres.
     sigma_floor_m : non-penetration barrier, metres (small = stiff).
 
@@ -163,8 +174,8 @@ class ContactSettings:
     ``smooth_s`` seconds; with one camera the speed leaves out the velocity along its
     viewing direction, see :func:`detect_contacts`). The defaults find the run's short
     stances (a running forefoot is never slower than about 10 cm/s at 60 fps); stricter
-    thresholds (5 / 8 cm/s over 0.1 s) pin fewer rolling frames, which cost less error
-    on the walk (10.2 instead of 11.6-12.4 mm) but find no contact in the run.
+    thresholds (12 / 20 cm/s, or contacts trimmed by 20 ms) left the lab walk's error
+    0.1-0.3 mm above no rows and raised its skating to 1.7-2.7 cm/s.
 
     height_on_m, speed_on_mps : a foot point enters contact below both;
     height_off_m, speed_off_mps : it leaves contact above either (hysteresis);
@@ -174,12 +185,14 @@ class ContactSettings:
     floor_margin_m : how far below its lowest height (1st percentile over the motion, or
         its contact height when lower) a foot point may go before the non-penetration
         barrier acts.
+    trim_s : each detected contact is shortened by this at both ends (not at the clip's
+        ends); 0 by default (trimming 20 ms cost the run its short stances).
     ankle_height_m : when the foot points have no toe or heel (COCO-17's ankles), the
         estimated floor is put this far below the planted ankles (an adult's ankle joint
         centre stands 6-9 cm above the floor), so that the feet stand on it.
     """
 
-    sigma_velocity_mps: float = 0.01
+    sigma_velocity_mps: float = 0.02
     sigma_height_m: float = 0.02
     sigma_floor_m: float = 0.003
     height_on_m: float = 0.03
@@ -193,6 +206,9 @@ class ContactSettings:
     rounds: int = 2
     ankle_height_m: float = 0.07
     floor_margin_m: float = 0.005
+    trim_s: float = 0.0
+    velocity_slack: float = 1.0
+    slack_from_mps: float = 0.05
 
     def __post_init__(self):
         for f in fields(self):
@@ -214,6 +230,9 @@ class FootContact:
     contact : (T, F) bool, foot point f in contact at frame t.
     contact_height_m : (F,) height of each foot point above the floor in contact.
     clearance_m : (F,) the lowest each foot point may go (non-penetration).
+    extra : ``"seen_speed_mps"`` (T, F), the speed the data see (:func:`ground_contacts`,
+        detected contacts only: contacts given by the user are held as given), which
+        softens the zero-velocity rows (:class:`ContactSettings`); not saved.
     """
 
     floor: Floor
@@ -418,9 +437,12 @@ def detect_contacts(p_feet, floor: Floor, fps: float, settings: ContactSettings 
         for a, b in _runs(~out[:, f]):
             if 0 < a and b < T and b - a <= gap:
                 out[a:b, f] = True
+        trim = int(round(s.trim_s * fps))
         for a, b in _runs(out[:, f]):
-            if b - a < shortest:
-                out[a:b, f] = False
+            a2, b2 = a + trim * (a > 0), b - trim * (b < T)
+            out[a:b, f] = False
+            if b2 - a2 >= shortest:
+                out[a2:b2, f] = True
     return out
 
 
@@ -490,7 +512,9 @@ def contact_rows(figure, feet: FootContact, fps: float, settings: ContactSetting
     """The zero-velocity, contact-height and non-penetration rows of ``feet``.
 
     On a grid super-sampled ``factor`` times, each frame's rows weigh ``1 / factor`` (the
-    contact rows keep the weight of one observed frame)."""
+    contact rows keep the weight of one observed frame). With ``feet.extra["seen_speed_mps"]``
+    the zero-velocity rows are softened where the point is seen to move
+    (``ContactSettings.velocity_slack``)."""
     s = settings or ContactSettings()
     idx = figure.keypoint_index(feet.names)
     T = feet.contact.shape[0]
@@ -500,7 +524,14 @@ def contact_rows(figure, feet: FootContact, fps: float, settings: ContactSetting
     if feet.contact.any():
         rows.insert(0, ContactHeight(idx, feet.contact, fl.n, fl.offset_m, feet.contact_height_m,
                                      s.sigma_height_m, w))
-        rows.insert(0, ContactVelocity(idx, feet.contact, fps, s.sigma_velocity_mps, w, normal=fl.n))
+        wv = w
+        seen = feet.extra.get("seen_speed_mps")
+        if seen is not None and s.velocity_slack > 0:
+            v = np.asarray(seen, float)
+            v = 0.5 * (v + np.vstack([v[1:], v[-1:]]))  # the pair (t, t + 1)
+            v = np.maximum(0.0, v - s.slack_from_mps)
+            wv = w * s.sigma_velocity_mps**2 / (s.sigma_velocity_mps**2 + (s.velocity_slack * v) ** 2)
+        rows.insert(0, ContactVelocity(idx, feet.contact, fps, s.sigma_velocity_mps, wv, normal=fl.n))
     return rows
 
 
@@ -558,7 +589,10 @@ def ground_contacts(problem, Q, floor="auto", contact="auto", settings: ContactS
     else:
         C = contacts_from_spec(contact, names, len(Q), problem.factor)
     height, clearance = contact_heights(feet, fl, C, s)
-    return FootContact(fl, names, C, height, clearance)
+    if not (isinstance(contact, str) and contact == "auto"):  # the user's contacts: planted as given
+        return FootContact(fl, names, C, height, clearance)
+    seen = _speeds(feet, float(problem.fps), s.smooth_s, _unseen(problem))
+    return FootContact(fl, names, C, height, clearance, extra={"seen_speed_mps": seen})
 
 
 def solve_on_the_floor(problem, res, floor="auto", contact="auto", *, settings: ContactSettings | None = None,
