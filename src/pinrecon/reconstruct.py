@@ -29,7 +29,7 @@ from .result import Result, load_result
 from .rows import Measurement2D
 from .solver import SolveResult, SolverOptions, solve
 from .starts import available_starts, get_start, initial_trajectory
-from .starts.camera_auto import AutoCamera, auto_camera, camera_scale_from_keyframes, image_size_of
+from .starts.camera_auto import AutoCamera, auto_camera, camera_scale_from_keyframes, check_focal, image_size_of
 from .tracks import Keyframe, Keyframes, Markers, Tracks
 from .windowed import solve_windowed, windowed_length
 
@@ -241,6 +241,7 @@ def reconstruct(
     q0 = initial_trajectory(problem, _start_name(init, seed))
     res = solve(problem, q0, options, callback, active=problem.active, g0=problem.g0)
     res = fault_stage(problem, res, options, callback)  # left/right swaps repaired (warm re-solve), outliers
+    auto = check_focal(problem, res, auto, options=options)  # how well the tracks fix an auto camera's focal
     if floor is None and contact is None:
         return _package(problem, res, auto)
     problem, res, feet = solve_on_the_floor(

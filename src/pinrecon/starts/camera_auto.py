@@ -29,6 +29,9 @@ known figure size, overall size against distance (perspective) or scale
 (orthographic): the prior on the figure's proportions (or the figure as given) fixes
 it; and focal length against distance is only weakly observable, through the
 perspective within the figure (its depth extent against its distance).
+:func:`focal_profile` measures it after each auto solve (the MAP cost profiled over the
+focal length) and :func:`check_focal` warns (:class:`FocalLengthWarning`) when the
+tracks do not fix it; on issue 12's CMU walk without keyframes they do not.
 
 **Focal length from keyframes** (:func:`camera_scale_from_keyframes`): a given camera
 whose focal length (or scale) is to be calibrated starts from the least-squares value
@@ -56,6 +59,12 @@ __all__ = [
     "orthographic_from_keyframes",
     "camera_scale_from_keyframes",
     "keyframe_correspondences",
+    "FocalReport",
+    "FocalLengthWarning",
+    "focal_profile",
+    "profile_interval",
+    "stretch_depth",
+    "check_focal",
 ]
 
 #: default horizontal field of view of the auto perspective camera, degrees
@@ -332,3 +341,194 @@ def auto_camera(tracks, figure=None, image_size=None, projection: str = "perspec
         if cam is not None:
             return cam
     return Orthographic(R_AUTO, spread_px / size_m, centre)
+
+
+# ----------------------------------------------------------------------------- how well the data fix f
+class FocalLengthWarning(UserWarning):
+    """The tracks do not determine the auto camera's focal length (see :func:`focal_profile`)."""
+
+
+#: a cost rise (nats) that rules a focal length out: chi-square(1) / 2 at 95 %
+PROFILE_THRESHOLD = 1.92
+
+#: log focal length steps of the profile, outwards from the fitted value (0.1: about 10 %)
+PROFILE_STEPS = (0.1, 0.3, 0.6)
+
+
+@dataclass
+class FocalReport:
+    """How well a solve's tracks fix the auto camera's focal length.
+
+    focal_px : the fitted focal length (the solve's); start_px : where it started.
+    profile : ``(focal_px, cost)`` pairs, the MAP cost with the focal length held at each
+        value and everything else re-solved (``cost`` at ``focal_px`` is the solve's).
+    interval_px : (low, high): determined, the focal lengths whose profiled cost stays
+        within ``threshold`` of the lowest; not determined, the whole tested range (nothing
+        in it is ruled out; ``bounded`` False). See :func:`profile_interval`.
+    depth_ratio : the root's largest over smallest depth from the camera (a number
+        that does not depend on f): how far the subject walks towards or away from it.
+    determined : the interval lies within ``tolerance`` of ``focal_px`` on both sides.
+    """
+
+    focal_px: float
+    start_px: float
+    profile: list
+    interval_px: tuple
+    bounded: tuple
+    depth_ratio: float
+    determined: bool
+    tolerance: float
+    threshold: float = PROFILE_THRESHOLD
+
+    def message(self) -> str:
+        lo, hi = self.interval_px
+        costs = [c for _, c in self.profile]
+        low_f = self.profile[int(np.argmin(costs))][0]
+        tail = (f"; the subject's depth changes by a factor {self.depth_ratio:.2f} along the clip"
+                + (" (hardly at all: nothing ties f to the depths)" if self.depth_ratio < 1.1 else ""))
+        if self.determined:
+            return (f"focal length {self.focal_px:.0f} px (started at {self.start_px:.0f} px), "
+                    f"{lo:.0f} to {hi:.0f} px at 95 % (MAP cost profile){tail}")
+        return (f"the focal length is NOT determined by these tracks: fitted {self.focal_px:.0f} px (started at "
+                f"{self.start_px:.0f} px) but the MAP cost profile rules out nothing from {lo:.0f} to {hi:.0f} px "
+                f"(it moves by {max(costs) - min(costs):.1f} over that range, lowest at {low_f:.0f} px, and is not "
+                f"one valley {self.threshold:g} deep within {100 * self.tolerance:.0f} % of the fit){tail}. "
+                "Give a calibrated camera (--camera FILE) or 3D keyframes for a metric focal length")
+
+    def to_dict(self) -> dict:
+        return {"focal_px": self.focal_px, "start_px": self.start_px,
+                "profile": [[float(f), float(c)] for f, c in self.profile],
+                "interval_px": [float(v) for v in self.interval_px], "bounded": [bool(b) for b in self.bounded],
+                "depth_ratio": self.depth_ratio, "determined": self.determined, "tolerance": self.tolerance,
+                "threshold": self.threshold, "message": self.message()}
+
+
+def stretch_depth(Q, camera, k: float) -> np.ndarray:
+    """``Q`` with its root moved along the camera's depth axis by the factor ``k`` about
+    the optical centre (``z_cam -> k z_cam``, ``x_cam`` and ``y_cam`` kept): what a focal
+    length ``k`` times longer does to a reconstruction that keeps the image scale
+    ``f / z`` of every frame."""
+    R, t = np.asarray(camera.R, float), np.asarray(camera.t, float)
+    out = np.array(Q, float)
+    p_cam = out[:, :3] @ R.T + t
+    p_cam[:, 2] *= k
+    out[:, :3] = (p_cam - t) @ R
+    return out
+
+
+def focal_profile(problem, res, *, steps: Sequence[float] = PROFILE_STEPS, tolerance: float = 0.1,
+                  threshold: float = PROFILE_THRESHOLD, options=None) -> FocalReport | None:
+    """The profile of the MAP cost over the focal length of ``problem``'s (first, perspective)
+    camera around the solution ``res``, and the :class:`FocalReport` it gives.
+
+    For each log step ``d`` in ``+-steps`` (outwards, each from its neighbour's solution),
+    the focal length is held at ``fitted * exp(d)`` and the trajectory (and any other
+    global, e.g. the proportions) re-solved warm from the neighbour's solution with the
+    root's depth stretched by the same factor (:func:`stretch_depth`: the image scale of
+    every frame kept), so every point of the profile lies on the same branch of poses.
+    ``None`` when the problem does not calibrate a perspective camera.
+
+    What fixes f (``docs/globals.md``, section 4): with the figure's size known, each
+    frame's image scale fixes ``z / f`` and the lateral and vertical positions in metres,
+    whatever f; only the depths scale with f. So f is seen only where the figure's 3D
+    shape meets its depth: the perspective within the figure (parts nearer the camera look
+    larger), and the depth its limbs span by foreshortening (a limb's image length against
+    its 3D length) against the distance its root travels in depth. Both are weak: a limb
+    tilted 17 degrees out of the image plane gains 11 % depth for a 1 % longer limb, so
+    the generic figure's proportions bias f by more than 10 %; a subject who keeps his
+    distance (``depth_ratio`` near 1) gives no travel at all. The profile measures what
+    the data say instead of assuming it; the interval is reported, not a guess.
+    """
+    from ..solver import solve
+
+    views = getattr(problem, "views", None) or []
+    g = getattr(res, "g", None)
+    if not views or g is None or not len(g):
+        return None
+    intr = views[0].measurement.intrinsics if views[0].measurement is not None else None
+    if intr is None or intr.name != "log_focal":
+        return None
+    col = intr.col
+    g_fit = np.array(g, float)
+    f_fit = intr.value(g_fit)
+    cam_fit = intr.camera(g_fit)
+    frozen = np.ones(len(g_fit), bool)
+    frozen[col] = False
+    points = [(f_fit, float(res.cost))]
+    for sign in (1.0, -1.0):
+        Q, gg, last = np.array(res.x, float), g_fit.copy(), 0.0
+        for d in sorted(steps):
+            gg = gg.copy()
+            gg[col] = g_fit[col] + sign * d
+            Q = stretch_depth(Q, cam_fit, float(np.exp(sign * d - last)))
+            r = solve(problem, Q, options, active=problem.active, g0=gg, active_globals=frozen)
+            Q, last = r.x, sign * d
+            if r.g is not None and len(r.g):
+                gg = np.array(r.g, float)
+            points.append((float(f_fit * np.exp(sign * d)), float(r.cost)))
+    interval, bounded, determined = profile_interval(points, f_fit, threshold=threshold, tolerance=tolerance)
+    Q = problem.figure.normalize(res.x)
+    root_cam = Q[:, :3] @ np.asarray(cam_fit.R, float).T + np.asarray(cam_fit.t, float)
+    z = root_cam[:, 2][root_cam[:, 2] > 1e-6]
+    ratio = float(z.max() / z.min()) if len(z) else 1.0
+    return FocalReport(float(f_fit), float(intr.value(np.zeros_like(g_fit))), sorted(points), interval, bounded,
+                       ratio, determined, float(tolerance), float(threshold))
+
+
+def profile_interval(points, f_fit: float, *, threshold: float = PROFILE_THRESHOLD, tolerance: float = 0.1):
+    """``(interval_px, bounded, determined)`` from a cost profile ``points`` ((focal_px,
+    cost) pairs, the fitted ``f_fit`` among them).
+
+    The profile *determines* f when it is one valley (falling, then rising) whose lowest
+    point is the fit, not at either end, and rises by more than ``threshold`` at the
+    tested values next to the fit on both sides, which lie within ``tolerance`` (at
+    least a log step of 0.1) of it. Then the interval is where the parabola in log f
+    through the lowest point and its two neighbours crosses ``lowest + threshold``: the
+    statistical uncertainty of the MAP (the model, e.g. the figure's proportions, taken as
+    right; a wrong model can bias f by more than the interval says).
+    Otherwise nothing in the tested range is ruled out: a profile that jumps between
+    branches of poses, or rises less than ``threshold`` across the tested range, or keeps
+    falling past its end cannot put f anywhere, and the interval is the whole tested
+    range (``bounded`` False on both sides)."""
+    pts = sorted((float(f), float(c)) for f, c in points)
+    f_arr = np.array([p[0] for p in pts])
+    c_arr = np.array([p[1] for p in pts])
+    i0 = int(np.argmin(np.abs(np.log(f_arr / f_fit))))
+    best = int(np.argmin(c_arr))
+    unimodal = bool(np.all(np.diff(c_arr[: best + 1]) <= 0) and np.all(np.diff(c_arr[best:]) >= 0))
+    level = c_arr[best] + threshold
+    near = 0 < best < len(f_arr) - 1 and best == i0
+    close = near and f_arr[best - 1] >= f_fit / np.exp(max(tolerance, 0.1) + 1e-9) \
+        and f_arr[best + 1] <= f_fit * np.exp(max(tolerance, 0.1) + 1e-9)
+    determined = bool(unimodal and close and c_arr[best - 1] > level and c_arr[best + 1] > level)
+    if not determined:
+        return (float(f_arr[0]), float(f_arr[-1])), (False, False), False
+
+    # the parabola in log f through the lowest point and its two neighbours (exact for a
+    # quadratic profile; a chord would cut the valley narrower than it is)
+    x = np.log(f_arr[best - 1: best + 2] / f_arr[best])
+    a2, a1, a0 = np.polyfit(x, c_arr[best - 1: best + 2], 2)
+    disc = np.sqrt(a1 * a1 - 4.0 * a2 * (a0 - level))
+    roots = np.sort([(-a1 - disc) / (2.0 * a2), (-a1 + disc) / (2.0 * a2)])
+
+    def cross(i):
+        return float(f_arr[best] * np.exp(roots[i]))
+
+    return (cross(0), cross(1)), (True, True), True
+
+
+def check_focal(problem, res, auto: dict | None, **kw) -> dict | None:
+    """The auto camera's description ``auto`` with ``"focal"``, the :class:`FocalReport`
+    of :func:`focal_profile` as plain data, when the auto camera is perspective and its
+    focal length was a global of the solve ``res``; warns
+    (:class:`FocalLengthWarning`) when the tracks do not determine it."""
+    if not auto or auto.get("projection") != "perspective":
+        return auto
+    rep = focal_profile(problem, res, **kw)
+    if rep is None:
+        return auto
+    if not rep.determined:
+        import warnings
+
+        warnings.warn(rep.message(), FocalLengthWarning, stacklevel=3)
+    return {**auto, "focal": rep.to_dict()}
