@@ -246,3 +246,34 @@ def test_exports_bvh_and_csv(fixed, tmp_path):
     assert [f.name for f in files] == ["m.bvh", "m.csv"]
     assert (tmp_path / "m.bvh").read_text().startswith("HIERARCHY")
     assert len((tmp_path / "m.csv").read_text().splitlines()) == s.n_frames + 1
+
+
+def test_uncertain_spans_come_from_the_result_and_are_drawn(case, start):
+    """The hypothesis search's uncertain spans (gap below its threshold) are read from the
+    result's extras and drawn as a purple strip on the timeline; decided spans are not."""
+    from dataclasses import replace
+
+    from pinrecon.workbench.panels import UNCERTAIN_RGB, timeline
+
+    fig, Q, cam, tracks, keys = case
+    extras = dict(start.extras)
+    extras.update(
+        hypothesis_chains=np.array(["left_hip-left_knee-left_ankle", "right_hip-right_knee-right_ankle"]),
+        # chain, start, stop, state, gap: one uncertain span (gap 0.5 < 2), one decided (gap 9)
+        hypothesis_spans=np.array([[1.0, 20.0, 45.0, 1.0, 0.5], [0.0, 60.0, 90.0, 0.0, 9.0]]),
+        hypothesis_threshold=np.float64(2.0),
+    )
+    s = Session(fig, tracks, cam, keys, result=replace(start, extras=extras))
+    assert s.uncertain_spans() == [(20, 45, "right_hip-right_knee-right_ankle")]
+    assert Session(fig, tracks, cam, keys, result=start).uncertain_spans() == []
+    W, H = 480, 90
+    img = timeline(np.ones(s.n_frames), 0, uncertain=[(a, b) for a, b, _ in s.uncertain_spans()], size=(W, H))
+    row = img[H - 17]
+    purple = np.all(row == UNCERTAIN_RGB, axis=-1)
+
+    def x(t):  # the timeline's frame -> pixel map, written out
+        return 8 + (W - 16) * t / (s.n_frames - 1)
+
+    cols = np.flatnonzero(purple)
+    assert cols.min() == pytest.approx(x(20), abs=1.0) and cols.max() == pytest.approx(x(44), abs=1.0)
+    assert not purple[int(x(70))]

@@ -297,6 +297,11 @@ class Workbench:
             f"frame {self.frame}: error {err[self.frame]:.2f} px" if np.isfinite(err[self.frame]) else f"frame {self.frame}",
             f"needs a solve (frames {pending[0]}-{pending[1]})" if pending else "solved: up to date",
         ]
+        unsure = s.uncertain_spans()
+        if unsure:
+            here = [c for a, b, c in unsure if a <= self.frame < b]
+            lines.append(f"uncertain depth (purple on the timeline): {len(unsure)} spans"
+                         + (f"; here: {', '.join(here)}" if here else ""))
         if self.last_solve:
             lines.append(f"last solve: {self.last_solve}")
         if self.message:
@@ -327,7 +332,8 @@ class Workbench:
             self.view_img.image = image_view(tracks_uv, uv[f], self.track_names, self.edges_tracked,
                                              bounds=(c[0] - 1.33 * h, c[1] - h, c[0] + 1.33 * h, c[1] + h),
                                              keyed=np.array([n in keyed for n in self.track_names]))
-            self.timeline_img.image = timeline(err, f, keyframes=s.keyframe_frames(), pending=s.dirty_frames)
+            self.timeline_img.image = timeline(err, f, keyframes=s.keyframe_frames(), pending=s.dirty_frames,
+                                               uncertain=[(a, b) for a, b, _ in s.uncertain_spans()])
             opts = [f"#{i} frame {k.frame * s.factor}: {k.kind} " + ", ".join(list(k.points or k.joints)[:3])
                     + (" ..." if len(k.points or k.joints) > 3 else "") for i, k in enumerate(s.keyframes)] or ["(none)"]
             if list(self.key_list.options) != opts:

@@ -56,10 +56,16 @@ def image_view(tracks_uv, model_uv, names, edges, *, bounds, size=(480, 360), ke
     return np.asarray(img)
 
 
-def timeline(error_px, frame, *, keyframes=(), pending=None, size=(480, 90)):
+#: the colour of the spans the multi-hypothesis start could not decide (timeline strip)
+UNCERTAIN_RGB = (170, 60, 200)
+
+
+def timeline(error_px, frame, *, keyframes=(), pending=None, uncertain=(), size=(480, 90)):
     """The sequence at a glance: reprojection error per frame (grey curve, its maximum
-    written), keyframes (orange ticks), frames waiting for a solve (blue band), the
-    current frame (red line)."""
+    written), keyframes (orange ticks), frames waiting for a solve (blue band), spans
+    whose limb depth the multi-hypothesis start could not decide (``uncertain``: (first
+    frame, frame after the last) pairs, a purple strip along the bottom: look there
+    first), the current frame (red line)."""
     from PIL import Image, ImageDraw
 
     W, H = size
@@ -87,8 +93,12 @@ def timeline(error_px, frame, *, keyframes=(), pending=None, size=(480, 90)):
             pts = []
     if len(pts) > 1:
         d.line(pts, fill=(110, 110, 110), width=1)
+    for a, b in uncertain:
+        d.rectangle([x(a), H - 20, max(x(a) + 1, x(max(a, b - 1))), H - 14], fill=UNCERTAIN_RGB)
     for f in keyframes:
         d.polygon([(x(f), 12), (x(f) - 5, 2), (x(f) + 5, 2)], fill=(230, 150, 0))
     d.line([(x(frame), 0), (x(frame), H)], fill=(200, 0, 0), width=2)
-    d.text((8, H - 11), f"reprojection error per frame (max {top:.1f} px); keyframes; frame {frame}", fill=(80, 80, 80))
+    legend = "; uncertain depth (purple)" if len(uncertain) else ""
+    d.text((8, H - 11), f"reprojection error per frame (max {top:.1f} px); keyframes{legend}; frame {frame}",
+           fill=(80, 80, 80))
     return np.asarray(img)

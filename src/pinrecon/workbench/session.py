@@ -149,6 +149,7 @@ class Session:
         self._redo: list[_Snapshot] = []
         self._state = _Snapshot(tuple(kf), q, result, None, "start")
         self._cache: tuple | None = None
+        self._uncertain = _uncertain_spans(result, self.n_frames)
 
     # ------------------------------------------------------------------ reading
     @property
@@ -224,6 +225,14 @@ class Session:
         base = Result.from_motion(self.figure, self._state.q, self.fps, camera=self.camera)
         _, err = self.reprojection_px()
         return replace(base, reprojection_error_px=err, observed_frames=self.observed_frames())
+
+    def uncertain_spans(self) -> list[tuple[int, int, str]]:
+        """The spans ``(first frame, frame after the last, limb)`` whose depth the
+        multi-hypothesis start of the first solve could not decide (cost gap between its
+        two best hypotheses below its threshold, ``Result.extras["hypothesis_*"]``): where
+        to look for a limb on the wrong side first. Empty when that start did not run
+        (e.g. with 3D keyframes, or a result made elsewhere)."""
+        return list(self._uncertain)
 
     def keyframe_frames(self) -> np.ndarray:
         """Output frames that carry a keyframe (sorted, unique)."""
@@ -508,3 +517,20 @@ class Session:
             export_html(res, html, keyframe_frames=self.keyframe_frames())
             out.append(Path(html))
         return out
+
+
+def _uncertain_spans(result, n_frames: int) -> list[tuple[int, int, str]]:
+    """``(start, stop, chain)`` of the spans the hypothesis search called uncertain, from
+    a result's extras (rows: chain index, start, stop, state, gap), clipped to the frames."""
+    x = getattr(result, "extras", None) or {}
+    if "hypothesis_spans" not in x:
+        return []
+    spans = np.asarray(x["hypothesis_spans"], float).reshape(-1, 5)
+    chains = [str(c) for c in np.asarray(x.get("hypothesis_chains", [])).ravel()]
+    thr = float(np.asarray(x.get("hypothesis_threshold", np.inf)))
+    out = []
+    for c, a, b, _state, gap in spans:
+        a, b = int(max(0, a)), int(min(n_frames, b))
+        if gap < thr and b > a:
+            out.append((a, b, chains[int(c)] if 0 <= int(c) < len(chains) else f"chain {int(c)}"))
+    return sorted(out)
