@@ -380,25 +380,30 @@ def _solve(
                 nu = 2.0
             old_cost = cost
             x, gv, blocks, costs, cost = x_new, g_new, new_blocks, new_costs, new_cost
-            g, border = linearise(blocks)
-            gg = None if border is None else border[2]
-            band_ready = True
+            stop = None
+            if old_cost - cost <= opt.ftol * cost:
+                stop = "ftol"
+            elif step_norm <= opt.xtol * (np.sqrt(T * nv + n_g) + step_norm):
+                stop = "xtol"
+            if stop is None:
+                g, border = linearise(blocks)
+                gg = None if border is None else border[2]
+                band_ready = True
+            else:  # the last step: the gradient for the report, no normal equations
+                g, gg = gradient(blocks, [b.r for b in blocks])
             rep = _rep(it, cost, costs, step_norm, lam, grad_norm(g, gg), True, t_start)
         else:
+            stop = None
             lam, nu = lam * nu, nu * 2.0
             rep = _rep(it, cost, costs, step_norm, lam, gnorm, False, t_start, why)
         report.append(rep)
         if callback is not None and callback(rep):
             status = "stopped by callback"
             break
-        if rep.accepted:
-            if old_cost - cost <= opt.ftol * cost:
-                status, converged = "ftol", True
-                break
-            if step_norm <= opt.xtol * (np.sqrt(T * nv + n_g) + step_norm):
-                status, converged = "xtol", True
-                break
-        elif lam > opt.max_damping:
+        if stop is not None:
+            status, converged = stop, True
+            break
+        if not rep.accepted and lam > opt.max_damping:
             status = "no_progress"
             break
     res = _result(x, cost, costs, it, converged, status, report, t_start, initial_cost)

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 from scipy.optimize import least_squares
-from scipy.stats import chi2
+from scipy.special import chdtri  # chi2.ppf(q, k) = chdtri(k, 1 - q), without importing scipy.stats (0.9 s)
 
 from .conics import pow2_scale, readonly
 from .fit_types import GroupFit
@@ -239,7 +239,7 @@ def core_fit(
     if dof > 0:
         thr = float(
             np.sqrt(
-                (np.sqrt(2.0) * sigma) ** 2 * chi2.ppf(_CHI2_QUANTILE, dof) / n_pts
+                (np.sqrt(2.0) * sigma) ** 2 * chdtri(dof, 1.0 - _CHI2_QUANTILE) / n_pts
                 + (model_tol * mean_len) ** 2
             )
         )
