@@ -176,6 +176,8 @@ def test_cli_camera_auto_and_save_camera(walk, tmp_path, capsys):
     assert main(base + ["--image-size", "1280", "720", "--save-camera", str(tmp_path / "cam.json")]) == 0
     err = capsys.readouterr().err
     assert "auto camera (perspective)" in err and "focal length 1108.5 ->" in err
+    # what the tracks say of the focal length is in the summary, not only in a warning
+    assert res_focal_line(err) == pr.load_result(tmp_path / "r.npz").calibration["camera_auto"]["focal"]["message"]
     res = pr.load_result(tmp_path / "r.npz")
     saved = pr.load_camera(tmp_path / "cam.json")
     np.testing.assert_allclose(saved.K, res.camera.K)
@@ -193,3 +195,10 @@ def test_cli_camera_auto_and_save_camera(walk, tmp_path, capsys):
     assert main(["reconstruct", "--figure", "human", "--tracks", str(tmp_path / "tracks.json"), "--camera",
                  str(tmp_path / "cam.json"), "--image-size", "1280", "720", "--out", str(tmp_path / "r3.npz")]) == 2
     assert "--camera auto" in capsys.readouterr().err
+
+
+def res_focal_line(summary: str) -> str:
+    """The summary line that carries the auto camera's focal-length report."""
+    lines = [ln.strip() for ln in summary.splitlines() if "focal length" in ln and ("determined" in ln or "95 %" in ln)]
+    assert lines, summary
+    return lines[-1].removeprefix("WARNING: ")

@@ -183,6 +183,10 @@ class Result:
             else:
                 what = f"scale {cam.scale:.1f} px/m, world origin at ({cam.center[0]:.1f}, {cam.center[1]:.1f}) px"
             lines.append(f"  auto camera ({auto.get('projection')}): {what}; pose: {auto.get('pose')}")
+            focal = auto.get("focal")
+            if isinstance(focal, dict) and focal.get("message"):
+                flag = "" if focal.get("determined") else "WARNING: "
+                lines.append(f"  {flag}{focal['message']}")
         return lines
 
     def foot_metrics(self) -> dict | None:
