@@ -53,12 +53,12 @@ def _from_band(ab, n):
     return np.tril(H) + np.tril(H, -1).T
 
 
-def _blocks(T, seed=1):
+def _blocks(T, seed=1, gap=True):
     fig = pr.Figure.human()
     Q = smooth_motion(fig, T, 30.0, seed=seed)
     cam = pr.Orthographic.from_view([0, 0, -1], scale=300.0, center=(500.0, 500.0))
     tr = project_tracks(fig, Q, cam, fps=30.0, noise_px=3.0, missing=0.2, seed=seed)
-    if T > 3:
+    if T > 3 and gap:
         tr.points[2] = np.nan  # a frame without observations: two runs of frames
     k = fig.keypoint_index(tr.names)
     obs = tr.observed.any(1)
@@ -79,15 +79,20 @@ def _blocks(T, seed=1):
 
 @pytest.mark.parametrize("T", [1, 7, 40])
 @pytest.mark.parametrize("held", [False, True])
-def test_active_band_equals_dense_normal_equations(T, held):
-    fig, blocks = _blocks(T)
+@pytest.mark.parametrize("gap", [True, False])
+def test_active_band_equals_dense_normal_equations(T, held, gap):
+    # gap=False: the measurements cover every frame, whose products are written into the
+    # band without zeroing it first (the rest of the band is zeroed after them)
+    fig, blocks = _blocks(T, gap=gap)
     nv = fig.nv
     J, r = _dense(blocks, T, nv)
     active = None if not held else np.arange(nv) % 3 != 1
     ne = ActiveNormalEquations(T, nv, blocks, active)
     idx = (np.arange(T)[:, None] * nv + ne.act[None, :]).ravel()
     H, g = (J.T @ J)[np.ix_(idx, idx)], (J.T @ r)[idx]
-    for _ in range(2):  # the buffers are reused: the second assembly must be the same
+    for k in range(2):  # the buffers are reused: the second assembly must be the same
+        if k:
+            ne.ab[...] = 7.0  # what a factorisation leaves behind: every band entry overwritten
         g_b, _ = ne.assemble(blocks)
         Hb = _from_band(np.array(ne.ab), ne.n)
         assert np.abs(Hb - H).max() <= 1e-12 * np.abs(H).max()
@@ -99,6 +104,16 @@ def test_active_band_equals_dense_normal_equations(T, held):
     ne.ab[0] += 1.0
     x, _ = ArrowheadFactor(ne.ab).solve(g)
     np.testing.assert_allclose((H + np.eye(len(g))) @ x, g, rtol=1e-8, atol=1e-8 * np.abs(g).max())
+
+
+def test_band_of_diagonal_blocks_only_is_rebuilt_from_zero():
+    fig, blocks = _blocks(7)
+    blocks = [b for b in blocks if b.diagonal]
+    J, r = _dense(blocks, 7, fig.nv)
+    ne = ActiveNormalEquations(7, fig.nv, blocks)
+    ne.ab[...] = 1.0  # what a factorisation leaves behind
+    ne.assemble(blocks)
+    np.testing.assert_allclose(_from_band(np.array(ne.ab), ne.n), J.T @ J, atol=1e-12 * np.abs(J.T @ J).max())
 
 
 def test_one_frame_with_many_row_groups_and_a_frame_twice():

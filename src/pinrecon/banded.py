@@ -94,6 +94,8 @@ class _BlockPlan:
         self.frames, self.cols, self.diagonal = b.frames, cols, bool(b.diagonal)
         self.empty = b.frames.shape[0] == 0 or len(cc) == 0 or b.r.shape[1] == 0
         self.cc = cc
+        # which within-frame entries B[x, y] -> H[cc[y], cc[x]] are band entries (cc[y] >= cc[x])
+        self.upper = (cc[None, :] >= cc[:, None]).astype(float)
         ci = _index(cc)
         contiguous = isinstance(ci, slice)
         F = np.asarray(b.frames)
@@ -117,7 +119,7 @@ class _BlockPlan:
                     if self.diagonal:  # H[(t + d) na + c, t na + c]: summed per distance d first
                         kind, rest = "diag", (ci,)
                         self.kd = max(self.kd, d * na)
-                    elif d == 0:  # the dense per-frame accumulator D0[t, cc, cc]
+                    elif d == 0:  # the frame view S[t, cc, cc] (its entries a >= c)
                         kind, rest = "D0", (ci, ci) if contiguous else (cc[:, None], cc[None, :])
                     elif contiguous:  # S_d[t, c, a] = H[(t + d) na + a, t na + c] gets B^T
                         kind, rest = d, (ci, ci)
@@ -196,18 +198,20 @@ class ActiveNormalEquations:
         """Fill ``ab`` with ``H`` (undamped) and return ``g = J^T r`` (n,) and, with
         ``n_g`` globals, the border ``(B (n, n_g) Fortran-ordered, C, g_g)``.
 
-        Within-frame dense products are summed in a contiguous (T, na, na) buffer ``D0``
-        and moved into the band once (its lower triangle, column by column); products
-        between frames go straight into the band views."""
+        The first within-frame product covering whole frames (the 2D measurements) is
+        written by ``matmul`` straight into the frame view ``S`` (its entries ``a < c``,
+        which alias other band entries, are zeroed with the rest of the band right after,
+        so no separate zeroing pass over the whole band); the other products are added
+        into the band views (``S[t] += triu(B)``)."""
         if len(blocks) != len(self.plans) or not all(p.matches(b) for p, b in zip(self.plans, blocks)):
             self._plan(blocks)  # the rows changed their structure: plan again
         T, na = self.T, self.na
         if T == 1:  # one frame (a start's pose fits): a small dense H, few NumPy calls
             g = self._assemble_one_frame(blocks)
             return g, (self._border(blocks, n_g) if n_g else None)
-        self.ab.fill(0.0)
         g = np.zeros((T, na))
-        D0, diag = None, {}
+        S, diag = self._view(0), {}
+        written = False  # whether the band holds anything yet (it is zeroed before the first write)
         for b, p in zip(blocks, self.plans):
             if p.empty:
                 continue
@@ -225,22 +229,29 @@ class ActiveNormalEquations:
                 continue
             s, c = J.shape[1], p.c
             first = p.pairs[0] if len(p.pairs) == 1 else None
-            if D0 is None and first is not None and first[5] == "D0" and first[4].runs is not None \
+            if not written and first is not None and first[5] == "D0" and first[4].runs is not None \
                     and isinstance(first[6][0], slice):
-                # the first within-frame product (the 2D measurements): straight into D0, whose
-                # other frames (and columns) are the only ones to zero
-                D0 = self._d0(zero=False)
-                runs, cs = first[4].runs, first[6]
-                covered = np.zeros(T, bool)
-                for a, b, _ in runs:
-                    covered[a:b] = True
-                D0[~covered] = 0.0
-                if cs[0] != slice(0, na):  # partial columns: zero the rest of the covered frames
-                    D0[covered] = 0.0
+                # the first within-frame product (the 2D measurements): written straight into the
+                # band's frame view S (its entries a < c land on other band entries)
+                cs, runs = first[6], first[4].runs
+                full = cs[0] == slice(0, na) and sum(b_ - a for a, b_, _ in runs) == T
+                if not full:
+                    self.ab.fill(0.0)
                 Jt = J[:, 0].transpose(0, 2, 1)
-                for a, b, o in runs:
-                    np.matmul(Jt[o : o + b - a], J[o : o + b - a, 0], out=D0[(slice(a, b),) + cs])
+                c0 = cs[0].start
+                for a, b_, o in runs:
+                    np.matmul(Jt[o : o + b_ - a], J[o : o + b_ - a, 0], out=S[(slice(a, b_),) + cs])
+                    if not full:  # the entries a < c: back to zero
+                        for x in range(1, c):
+                            S[a:b_, c0 + x, c0 : c0 + x] = 0.0
+                if full:  # every frame's block written: zero the rest of the band (rows >= na - x of column x)
+                    for x in range(na):
+                        self.abv[:, x, na - x :] = 0.0
+                written = True
                 continue
+            if not written:
+                self.ab.fill(0.0)
+            written = True
             # every pair's J_i^T J_j at once: JJ[n, i c + x, j c + y] = (J_i^T J_j)[x, y]
             Jcat = J.transpose(0, 2, 1, 3).reshape(J.shape[0], J.shape[2], s * c) if s > 1 else J[:, 0]
             JJ = np.matmul(Jcat.transpose(0, 2, 1), Jcat)
@@ -248,31 +259,20 @@ class ActiveNormalEquations:
                 B = JJ[:, i * c : (i + 1) * c, j * c : (j + 1) * c]  # J_i^T J_j
                 if sel is not None:
                     B = B[sel]
-                if kind == "D0":
+                if kind == "D0":  # S[t, c, a] = H[t na + a, t na + c] takes the entries a >= c
                     if i != j:  # the same frame twice in one row group: both halves
                         B = B + B.transpose(0, 2, 1)
-                    if D0 is None:
-                        D0 = self._d0()
-                    fr.add(D0, rest, B)
+                    fr.add(S, rest, B * p.upper)  # entries a < c alias other band entries: + 0
                 elif kind == "abv":
                     fr.add(self.abv, rest, B)
                 else:  # S_d[t] takes B^T
                     fr.add(self._view(kind), rest, B.transpose(0, 2, 1))
+        if not written:
+            self.ab.fill(0.0)
         # the band's entries are far apart in memory (kd + 1 doubles): contiguous sums first,
         # then one pass into the band per kind of entry
-        if 0 in diag:
-            if D0 is None:
-                D0 = self._d0()
-            np.einsum("tii->ti", D0)[...] += diag.pop(0)
         for d, acc in diag.items():
             self.abv[: T - d, :, d * na] += acc[: T - d]
-        if D0 is not None:
-            S = self._view(0)
-            if T * na * na < 100_000:  # small: one masked add (S's entries a < c alias others, + 0)
-                S += D0 * np.triu(np.ones((na, na)))
-            else:  # S[t, c, a] = H[t na + a, t na + c] for a >= c, column by column
-                for col in range(na):
-                    S[:, col, col:] += D0[:, col, col:]
         border = self._border(blocks, n_g) if n_g else None
         return g.reshape(-1), border
 
@@ -297,11 +297,6 @@ class ActiveNormalEquations:
         self.ab.fill(0.0)
         self._view(0)[0] += np.triu(H)  # S[0, c, a] = H[a, c] for a >= c (symmetric H)
         return g
-
-    def _d0(self, zero: bool = True) -> np.ndarray:
-        """The within-frame accumulator (T, na, na), allocated once per solve; zeroed
-        unless ``zero`` is false (the caller then writes or zeroes every entry)."""
-        return self._buffer("D0", (self.T, self.na, self.na), zero)
 
     def _buffer(self, key, shape, zero: bool = True) -> np.ndarray:
         """A zeroed scratch array, allocated once per solve (no fresh pages every iteration)."""
