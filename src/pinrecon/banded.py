@@ -323,10 +323,13 @@ class ActiveNormalEquations:
             if p.empty:
                 continue
             J = b.J if p.keep is None else np.take(b.J, p.keep, axis=-1)
+            ci, gi = _index(p.cc), _index(gc)
+            # slices where the columns are consecutive (strided adds, no gather and scatter)
+            rest = (ci, gi) if isinstance(ci, slice) and isinstance(gi, slice) else (p.cc[:, None], gc[None, :])
             for i, (fr, _) in enumerate(p.grad):
                 Ji = J[:, i]
                 Bi = Ji[:, :, None] * b.Jg if p.diagonal else np.matmul(Ji.transpose(0, 2, 1), b.Jg)  # (N, c, g)
-                fr.add(B, (p.cc[:, None], gc[None, :]), Bi)
+                fr.add(B, rest, Bi)
         return B.reshape(T * na, n_g), C, gg
 
     def gradient(self, blocks, residuals) -> np.ndarray:
