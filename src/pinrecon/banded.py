@@ -120,7 +120,7 @@ class _BlockPlan:
                         kind, rest = "diag", (ci,)
                         self.kd = max(self.kd, d * na)
                     elif d == 0:  # the frame view S[t, cc, cc] (its entries a >= c)
-                        kind, rest = "D0", (ci, ci) if contiguous else (cc[:, None], cc[None, :])
+                        kind, rest = "frame", (ci, ci) if contiguous else (cc[:, None], cc[None, :])
                     elif contiguous:  # S_d[t, c, a] = H[(t + d) na + a, t na + c] gets B^T
                         kind, rest = d, (ci, ci)
                         self.kd = max(self.kd, d * na + len(cc) - 1)
@@ -229,7 +229,7 @@ class ActiveNormalEquations:
                 continue
             s, c = J.shape[1], p.c
             first = p.pairs[0] if len(p.pairs) == 1 else None
-            if not written and first is not None and first[5] == "D0" and first[4].runs is not None \
+            if not written and first is not None and first[5] == "frame" and first[4].runs is not None \
                     and isinstance(first[6][0], slice):
                 # the first within-frame product (the 2D measurements): written straight into the
                 # band's frame view S (its entries a < c land on other band entries)
@@ -259,7 +259,7 @@ class ActiveNormalEquations:
                 B = JJ[:, i * c : (i + 1) * c, j * c : (j + 1) * c]  # J_i^T J_j
                 if sel is not None:
                     B = B[sel]
-                if kind == "D0":  # S[t, c, a] = H[t na + a, t na + c] takes the entries a >= c
+                if kind == "frame":  # S[t, c, a] = H[t na + a, t na + c] takes the entries a >= c
                     if i != j:  # the same frame twice in one row group: both halves
                         B = B + B.transpose(0, 2, 1)
                     fr.add(S, rest, B * p.upper)  # entries a < c alias other band entries: + 0
@@ -298,12 +298,12 @@ class ActiveNormalEquations:
         self._view(0)[0] += np.triu(H)  # S[0, c, a] = H[a, c] for a >= c (symmetric H)
         return g
 
-    def _buffer(self, key, shape, zero: bool = True) -> np.ndarray:
+    def _buffer(self, key, shape) -> np.ndarray:
         """A zeroed scratch array, allocated once per solve (no fresh pages every iteration)."""
         buf = self._buffers.get(key)
         if buf is None or buf.shape != shape:
             buf = self._buffers[key] = np.zeros(shape)
-        elif zero:
+        else:
             buf.fill(0.0)
         return buf
 

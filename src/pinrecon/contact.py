@@ -42,6 +42,7 @@ __all__ = [
     "body_up",
     "estimate_floor",
     "detect_contacts",
+    "foot_speeds",
     "contact_heights",
     "contact_rows",
     "ground_contacts",
@@ -399,8 +400,15 @@ def _runs(mask):
     return list(zip(np.where(d == 1)[0], np.where(d == -1)[0]))
 
 
+def foot_speeds(p_feet, fps: float, settings: ContactSettings | None = None, unseen=None) -> np.ndarray:
+    """(T, F) speeds (m/s) of the foot points as contact detection sees them: smoothed over
+    ``settings.smooth_s``, without the velocity along ``unseen`` (see :func:`detect_contacts`)."""
+    s = settings or ContactSettings()
+    return _speeds(np.asarray(p_feet, float), float(fps), s.smooth_s, unseen)
+
+
 def detect_contacts(p_feet, floor: Floor, fps: float, settings: ContactSettings | None = None, *,
-                    unseen=None) -> np.ndarray:
+                    unseen=None, speeds=None) -> np.ndarray:
     """(T, F) bool: foot point f is in contact at frame t.
 
     A point enters contact when its height above its own lowest level (the
@@ -411,14 +419,15 @@ def detect_contacts(p_feet, floor: Floor, fps: float, settings: ContactSettings 
 
     ``unseen``: a direction the data do not see (a single camera's viewing direction);
     the speed then leaves out the velocity along it: a reconstruction's depth wanders
-    where the image does not, and a planted foot is still in the image too.
+    where the image does not, and a planted foot is still in the image too. ``speeds``:
+    those speeds (T, F) when the caller has them already (:func:`foot_speeds`).
     """
     s = settings or ContactSettings()
     P = np.asarray(p_feet, float)
     h = floor.height(P)
     level = np.nanquantile(h, s.low_quantile, axis=0)
     rel = h - level
-    v = _speeds(P, float(fps), s.smooth_s, unseen)
+    v = foot_speeds(P, float(fps), s, unseen) if speeds is None else np.asarray(speeds, float)
     T, F = h.shape
     on = (rel < s.height_on_m) & (v < s.speed_on_mps)
     stay = (rel < s.height_off_m) & (v < s.speed_off_mps)
@@ -582,16 +591,18 @@ def ground_contacts(problem, Q, floor="auto", contact="auto", settings: ContactS
         upper = Q[:, :3] if fig.floating else P_all
         fl = estimate_floor(feet, p_upper=upper, fps=problem.fps)
         fl = Floor(fl.normal, fl.offset_m - sole_offset(names, s))
-    if isinstance(contact, str) and contact == "auto":
-        C = detect_contacts(feet, fl, problem.fps, s, unseen=_unseen(problem))
+    auto = isinstance(contact, str) and contact == "auto"
+    seen = None
+    if auto:
+        seen = foot_speeds(feet, float(problem.fps), s, _unseen(problem))
+        C = detect_contacts(feet, fl, problem.fps, s, speeds=seen)
     elif contact is None or contact is False:
         C = np.zeros(feet.shape[:2], bool)
     else:
         C = contacts_from_spec(contact, names, len(Q), problem.factor)
     height, clearance = contact_heights(feet, fl, C, s)
-    if not (isinstance(contact, str) and contact == "auto"):  # the user's contacts: planted as given
+    if not auto:  # the user's contacts: planted as given
         return FootContact(fl, names, C, height, clearance)
-    seen = _speeds(feet, float(problem.fps), s.smooth_s, _unseen(problem))
     return FootContact(fl, names, C, height, clearance, extra={"seen_speed_mps": seen})
 
 

@@ -88,6 +88,7 @@ def run_video(out_dir, *, frames: int | None = None, seed: int = 0, callback=Non
     from . import metrics
     from .figure import Figure
     from .reconstruct import reconstruct
+    from .result import hypothesis_spans
     from .synthetic import (
         bundled_motion,
         coco_body_tracks,
@@ -113,8 +114,7 @@ def run_video(out_dir, *, frames: int | None = None, seed: int = 0, callback=Non
     Pe = res.keypoints3d[:, res.figure.keypoint_index(names)]
     segs = [(names.index(a), names.index(b)) for a, b in _SEGMENTS]
     x = res.extras
-    spans = np.asarray(x.get("hypothesis_spans", np.zeros((0, 5)))).reshape(-1, 5)
-    thr = float(x.get("hypothesis_threshold", np.inf))
+    _, spans, thr = hypothesis_spans(x)
     return {
         "frames": len(q), "fps": fps, "time_s": dt,
         "calibrated": bool(res.calibration) and res.calibration.get("mode", "none") != "none",

@@ -19,7 +19,6 @@ Conventions (see ``docs/derivations.md``):
 from __future__ import annotations
 
 import os
-import xml.etree.ElementTree as ET
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 
@@ -35,6 +34,7 @@ from .figure_files import (
     parse_keypoint_entries,
     scale_urdf_origins,
     urdf_joint_limits,
+    urdf_joint_names,
     xml_file,
 )
 
@@ -562,8 +562,7 @@ class Figure:
         if self.urdf_xml is None:
             raise InputError("this figure has no URDF to edit", field="urdf")
         if not isinstance(joint_scales, Mapping):
-            names = [j.get("name") for j in ET.parse(xml_file(self.urdf_xml)).getroot().findall("joint")]
-            joint_scales = {n: float(joint_scales) for n in names if n is not None}
+            joint_scales = {n: float(joint_scales) for n in urdf_joint_names(self.urdf_xml)}
         return scale_urdf_origins(self.urdf_xml, joint_scales)
 
     def rescaled(self, joint_scales: Mapping[str, float] | float, keypoint_scales: Mapping[str, float] | None = None) -> Figure:

@@ -40,6 +40,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import InputError, UnknownNameError
+from .figure_files import urdf_numbers
 from .io.bvh_format import BvhClip, BvhJoint, static_joints
 
 __all__ = ["BvhFigureData", "bvh_figure_data"]
@@ -68,10 +69,6 @@ class BvhFigureData:
     name: str
     source: str | None
     meta: dict
-
-
-def _numbers(v) -> str:
-    return " ".join(repr(float(x)) for x in v)
 
 
 def _link_name(j: BvhJoint) -> str:
@@ -142,9 +139,9 @@ def bvh_figure_data(clip: BvhClip, length_scale: float = 1.0, *, lock: Iterable[
         el = ET.SubElement(robot, "joint", name=name, type=jt)
         ET.SubElement(el, "parent", link=parent)
         ET.SubElement(el, "child", link=child)
-        ET.SubElement(el, "origin", xyz=_numbers(offset), rpy="0.0 0.0 0.0")
+        ET.SubElement(el, "origin", xyz=urdf_numbers(offset), rpy="0.0 0.0 0.0")
         if axis is not None:
-            ET.SubElement(el, "axis", xyz=_numbers(axis))
+            ET.SubElement(el, "axis", xyz=urdf_numbers(axis))
         if limit is not None:
             ET.SubElement(el, "limit", effort="0.0", velocity="0.0", lower=repr(-float(limit)), upper=repr(float(limit)))
     ET.indent(robot)

@@ -1,14 +1,15 @@
 """The files a figure is made of: keypoint maps (JSON) and URDF text.
 
 :class:`Keypoint` and the keypoint-map readers, and the few URDF text helpers the
-figure needs (a file object for XML parsers, the text without its declaration, the joint
-limits a URDF states). :mod:`pinrecon.figure` re-exports the public names.
+figure needs (a file object for XML parsers, the joints, their names and the limits a
+URDF states, scaled joint origins), read and written with the standard library. :mod:`pinrecon.figure` re-exports the public names.
 """
 
 from __future__ import annotations
 
 import io
 import os
+import xml.etree.ElementTree as ET
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -17,7 +18,17 @@ import numpy as np
 
 from .errors import InputError, UnknownNameError
 
-__all__ = ["Keypoint", "load_keypoint_map", "parse_keypoint_entries", "scale_urdf_origins", "urdf_joint_limits", "xml_file", "xml_text"]
+__all__ = [
+    "Keypoint",
+    "load_keypoint_map",
+    "parse_keypoint_entries",
+    "scale_urdf_origins",
+    "urdf_joint_limits",
+    "urdf_joint_names",
+    "urdf_joints",
+    "urdf_numbers",
+    "xml_file",
+]
 
 
 @dataclass(frozen=True)
@@ -71,30 +82,33 @@ def load_keypoint_map(path: str | os.PathLike) -> list[Keypoint]:
 
 
 def xml_file(xml: str | bytes) -> io.BytesIO:
-    """A file object lxml (and yourdfpy) accept even when the text carries an encoding
-    declaration (lxml refuses such a declaration in a ``str``)."""
+    """A file object XML parsers accept even when the text carries an encoding
+    declaration (a ``str`` with one is refused)."""
     return io.BytesIO(xml.encode() if isinstance(xml, str) else xml)
 
 
-def xml_text(xml: str | bytes) -> str:
-    """URDF text without the XML declaration (bytes from yourdfpy decoded)."""
-    text = xml.decode() if isinstance(xml, bytes) else xml
-    if text.lstrip().startswith("<?xml"):
-        text = text.split("?>", 1)[1].lstrip()
-    return text
+def urdf_numbers(values) -> str:
+    """Numbers as a URDF attribute (``xyz``, ``rpy``, ``axis``): full precision."""
+    return " ".join(repr(float(v)) for v in values)
 
 
-def urdf_joint_limits(xml: str) -> dict[str, tuple[float, float]]:
-    """Joint name -> (lower, upper) for revolute/prismatic joints whose URDF sets both.
+def urdf_joints(xml: str | bytes) -> list[ET.Element]:
+    """The ``<joint>`` children of ``<robot>`` (a ``<transmission>``'s ``<joint>`` is not
+    one), parsed with the standard library's ElementTree: yourdfpy reads the same, but
+    its import (trimesh) costs about a second on every figure built."""
+    return ET.parse(xml_file(xml)).getroot().findall("joint")
 
-    Read with the standard library's ElementTree (the ``<joint type><limit lower upper>``
-    elements of the URDF specification): yourdfpy would read the same, but its import
-    (trimesh) costs about a second on every figure built."""
-    import xml.etree.ElementTree as ET
 
-    root = ET.parse(xml_file(xml)).getroot()
+def urdf_joint_names(xml: str | bytes) -> list[str]:
+    """The names of the URDF's joints, in file order."""
+    return [j.get("name") for j in urdf_joints(xml) if j.get("name") is not None]
+
+
+def urdf_joint_limits(xml: str | bytes) -> dict[str, tuple[float, float]]:
+    """Joint name -> (lower, upper) for revolute/prismatic joints whose URDF sets both
+    (the ``<joint type><limit lower upper>`` elements of the URDF specification)."""
     out = {}
-    for j in root.iter("joint"):
+    for j in urdf_joints(xml):
         limit = j.find("limit")
         if j.get("type") not in ("revolute", "prismatic") or limit is None or j.get("name") is None:
             continue
@@ -110,10 +124,8 @@ def urdf_joint_limits(xml: str) -> dict[str, tuple[float, float]]:
 def scale_urdf_origins(urdf_xml: str | bytes, joint_factors: Mapping[str, float]) -> str:
     """URDF text with the origin translation (``xyz``) of the named joints multiplied by
     their factors (full precision; rotations and everything else untouched). Joints are
-    the ``<joint>`` children of ``<robot>`` (a ``<transmission>``'s ``<joint>`` is not
-    one); an unknown name raises :class:`~pinrecon.errors.UnknownNameError`."""
-    import xml.etree.ElementTree as ET
-
+    those of :func:`urdf_joints`; an unknown name raises
+    :class:`~pinrecon.errors.UnknownNameError`."""
     root = ET.parse(xml_file(urdf_xml)).getroot()
     joints = {j.get("name"): j for j in root.findall("joint")}
     unknown = [n for n in joint_factors if n not in joints]
@@ -123,6 +135,5 @@ def scale_urdf_origins(urdf_xml: str | bytes, joint_factors: Mapping[str, float]
         origin = joints[n].find("origin")
         if origin is None or origin.get("xyz") is None:
             continue
-        xyz = np.array([float(v) for v in origin.get("xyz").split()]) * float(f)
-        origin.set("xyz", " ".join(repr(float(v)) for v in xyz))
+        origin.set("xyz", urdf_numbers(np.array([float(v) for v in origin.get("xyz").split()]) * float(f)))
     return ET.tostring(root, encoding="unicode")

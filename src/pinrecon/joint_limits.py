@@ -52,19 +52,28 @@ def load_limits(path: str | os.PathLike, joint_names: Iterable[str] | None = Non
     return out
 
 
-def urdf_with_limits(xml: str, limits) -> str:
+def urdf_with_limits(xml: str, limits, *, add_missing: bool = False) -> str:
     """URDF text with the ``<limit lower upper>`` of the named joints set to ``limits``
     (radians; joints the URDF does not have, or without a ``<limit>`` element, are left),
-    so that a figure's saved URDF carries the limits it was given."""
+    so that a figure's saved URDF carries the limits it was given. With ``add_missing``
+    only revolute and prismatic joints are written, and one without a ``<limit>`` gets
+    one (effort and velocity 0): a file that carries every limit of the figure."""
     import xml.etree.ElementTree as ET
 
     root = ET.fromstring(xml.encode() if isinstance(xml, str) else xml)
     for joint in root.findall("joint"):
         name = joint.get("name")
-        if name in limits:
-            lim = joint.find("limit")
-            if lim is not None:
-                lo, hi = limits[name]
-                lim.set("lower", repr(float(lo)))
-                lim.set("upper", repr(float(hi)))
+        if name not in limits:
+            continue
+        lim = joint.find("limit")
+        if add_missing:
+            if joint.get("type") not in ("revolute", "prismatic"):
+                continue
+            if lim is None:
+                lim = ET.SubElement(joint, "limit", effort="0", velocity="0")
+        elif lim is None:
+            continue
+        lo, hi = limits[name]
+        lim.set("lower", repr(float(lo)))
+        lim.set("upper", repr(float(hi)))
     return ET.tostring(root, encoding="unicode")

@@ -21,7 +21,7 @@ from .figure import Figure, parse_keypoint_entries
 from .io.results import load_result_npz, save_result_npz
 from .solver import SolveResult
 
-__all__ = ["Result", "load_result"]
+__all__ = ["Result", "hypothesis_spans", "load_result"]
 
 
 @dataclass
@@ -135,9 +135,7 @@ class Result:
         (spans) and of the tracks (repairs, outliers)."""
         x, lines = self.extras, []
         if "hypothesis_spans" in x:
-            chains = [str(c) for c in np.asarray(x["hypothesis_chains"]).tolist()]
-            spans = np.asarray(x["hypothesis_spans"], float).reshape(-1, 5)
-            thr = float(x.get("hypothesis_threshold", 2.0))
+            chains, spans, thr = hypothesis_spans(x)
             unc = spans[spans[:, 4] < thr]
             lines.append(f"limb reflections: {len(spans)} spans over {len(chains)} limbs, {len(unc)} uncertain "
                          f"(cost gap < {thr:g} nats: a keyframe there would decide them)")
@@ -229,28 +227,17 @@ class Result:
         limited joints, and its keypoint map to ``<path stem>.keypoints.json`` next to it.
         Read it back with ``Figure.from_urdf(path, "<stem>.keypoints.json")`` (CLI:
         ``--figure path --keypoints <stem>.keypoints.json``). Returns the two paths."""
-        import xml.etree.ElementTree as ET
         from pathlib import Path
 
         from .io.atomic import atomic_write_text
+        from .joint_limits import urdf_with_limits
 
         fig = self.figure
         if fig is None or not fig.urdf_xml:
             raise InputError("the result has no figure with a URDF to save", field="figure")
-        root = ET.fromstring(fig.urdf_xml.encode())
-        limits = fig.limits_dict()
-        for joint in root.findall("joint"):
-            lim = limits.get(joint.get("name"))
-            if lim is None or joint.get("type") not in ("revolute", "prismatic"):
-                continue
-            el = joint.find("limit")
-            if el is None:
-                el = ET.SubElement(joint, "limit", effort="0", velocity="0")
-            el.set("lower", repr(float(lim[0])))
-            el.set("upper", repr(float(lim[1])))
         path = Path(path)
         kp_path = path.with_name(path.stem + ".keypoints.json")
-        atomic_write_text(path, ET.tostring(root, encoding="unicode"))
+        atomic_write_text(path, urdf_with_limits(fig.urdf_xml, fig.limits_dict(), add_missing=True))
         atomic_write_text(kp_path, json.dumps(fig.keypoint_map_dict(), indent=1))
         return [str(path), str(kp_path)]
 
@@ -338,3 +325,13 @@ def load_result(path) -> Result:
         extras={k: d[k] for k in d if k in FOOT_EXTRAS or k.startswith(FAULT_EXTRAS_PREFIXES)},
         calibration=_calibration(d, path),
     )
+
+
+def hypothesis_spans(extras) -> tuple[list[str], np.ndarray, float]:
+    """What the multi-hypothesis start left in a result's ``extras``: its limb labels,
+    its spans (S, 5) (rows: chain index, first frame, frame after the last, state, cost
+    gap in nats) and the gap below which a span is uncertain; no limbs and no spans when
+    it did not run."""
+    chains = [str(c) for c in np.asarray(extras.get("hypothesis_chains", [])).ravel().tolist()]
+    spans = np.asarray(extras.get("hypothesis_spans", np.zeros((0, 5))), float).reshape(-1, 5)
+    return chains, spans, float(np.asarray(extras.get("hypothesis_threshold", 2.0)))

@@ -533,11 +533,9 @@ def calibrate_figure(
     g = _wmedian(ratio, L0)
     seg_scale = dict(zip(segs, ratio))
     # URDF joint -> factor
-    import xml.etree.ElementTree as ET
+    from ..figure_files import urdf_joint_names
 
-    from ..figure import xml_file
-
-    all_joints = [j.get("name") for j in ET.parse(xml_file(figure.urdf_xml)).getroot().findall("joint")]
+    all_joints = urdf_joint_names(figure.urdf_xml)
     owner: dict[str, tuple[str, str]] = {}
     for sg in segs:
         for jn in _segment_joints(figure, sg):

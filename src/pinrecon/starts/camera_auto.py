@@ -408,11 +408,10 @@ def stretch_depth(Q, camera, k: float) -> np.ndarray:
     the optical centre (``z_cam -> k z_cam``, ``x_cam`` and ``y_cam`` kept): what a focal
     length ``k`` times longer does to a reconstruction that keeps the image scale
     ``f / z`` of every frame."""
-    R, t = np.asarray(camera.R, float), np.asarray(camera.t, float)
     out = np.array(Q, float)
-    p_cam = out[:, :3] @ R.T + t
+    p_cam = camera.camera_points(out[:, :3])
     p_cam[:, 2] *= k
-    out[:, :3] = (p_cam - t) @ R
+    out[:, :3] = (p_cam - np.asarray(camera.t, float)) @ np.asarray(camera.R, float)
     return out
 
 
@@ -467,9 +466,8 @@ def focal_profile(problem, res, *, steps: Sequence[float] = PROFILE_STEPS, toler
                 gg = np.array(r.g, float)
             points.append((float(f_fit * np.exp(sign * d)), float(r.cost)))
     interval, bounded, determined = profile_interval(points, f_fit, threshold=threshold, tolerance=tolerance)
-    Q = problem.figure.normalize(res.x)
-    root_cam = Q[:, :3] @ np.asarray(cam_fit.R, float).T + np.asarray(cam_fit.t, float)
-    z = root_cam[:, 2][root_cam[:, 2] > 1e-6]
+    z = cam_fit.depth(np.asarray(res.x, float)[:, :3])
+    z = z[z > 1e-6]
     ratio = float(z.max() / z.min()) if len(z) else 1.0
     return FocalReport(float(f_fit), float(intr.value(np.zeros_like(g_fit))), sorted(points), interval, bounded,
                        ratio, determined, float(tolerance), float(threshold))

@@ -32,6 +32,7 @@ import numpy as np
 
 from .. import Keyframe, Keyframes, Result, SolverOptions, Tracks, Weights, reconstruct
 from ..errors import InputError
+from ..result import hypothesis_spans
 from .edits import (
     Segment,
     blend_delta,
@@ -520,14 +521,9 @@ class Session:
 
 
 def _uncertain_spans(result, n_frames: int) -> list[tuple[int, int, str]]:
-    """``(start, stop, chain)`` of the spans the hypothesis search called uncertain, from
-    a result's extras (rows: chain index, start, stop, state, gap), clipped to the frames."""
-    x = getattr(result, "extras", None) or {}
-    if "hypothesis_spans" not in x:
-        return []
-    spans = np.asarray(x["hypothesis_spans"], float).reshape(-1, 5)
-    chains = [str(c) for c in np.asarray(x.get("hypothesis_chains", [])).ravel()]
-    thr = float(np.asarray(x.get("hypothesis_threshold", np.inf)))
+    """``(start, stop, chain)`` of the spans the hypothesis search called uncertain
+    (:func:`pinrecon.result.hypothesis_spans`), clipped to the frames."""
+    chains, spans, thr = hypothesis_spans(getattr(result, "extras", None) or {})
     out = []
     for c, a, b, _state, gap in spans:
         a, b = int(max(0, a)), int(min(n_frames, b))
