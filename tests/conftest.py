@@ -39,3 +39,24 @@ def walk():
     from pinrecon.io.bvh import load_bvh
 
     return load_bvh(WALK_BVH, CMU_UNIT_M)
+
+
+@pytest.fixture(scope="session")
+def coco_walk():
+    """The first 2 s of the CMU walk at 60 fps tracked as a detector would see it: the 12
+    COCO-17 body points with 2 px noise through a perspective camera (f = 1100 px,
+    1280 x 720, 45 degrees from side-on, 6 m away), and 5 cm point keyframes every
+    0.25 s. Returns (camera, tracks, true points (T, 12, 3), keyframes)."""
+    import numpy as np
+
+    from pinrecon.synthetic import bundled_motion, coco_body_tracks, perspective_side_camera
+    from pinrecon.tracks import keyframes_from_points
+
+    bfig, q, fps = bundled_motion("walk")
+    q, fps = q[:240:2], fps / 2
+    cam = perspective_side_camera(q, 45.0, distance_m=6.0, f_px=1100.0, center=(640.0, 360.0))
+    tracks, P = coco_body_tracks(bfig, q, cam, fps=fps, noise_px=2.0, seed=1)
+    rng = np.random.default_rng(2)
+    kf = keyframes_from_points(list(range(0, len(q), 15)), P + rng.normal(0.0, 0.05, P.shape), list(tracks.names),
+                               0.05)
+    return cam, tracks, P, kf

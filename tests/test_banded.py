@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 import pytest
+from dense_blocks import dense_jacobian
 
 import pinrecon as pr
 from pinrecon import kinematics
@@ -24,25 +25,6 @@ from pinrecon.rows import (
 )
 from pinrecon.solver import _flatten
 from pinrecon.synthetic import bundled_motion, point_keyframes, project_tracks, smooth_motion
-
-
-def _dense(blocks, T, nv):
-    """J (rows x T nv) and r, entry by entry from the blocks' definition."""
-    Js, rs = [], []
-    for b in blocks:
-        N, m = b.r.shape
-        for n in range(N):
-            J = np.zeros((m, T * nv))
-            for i in range(b.frames.shape[1]):
-                t = b.frames[n, i]
-                for ci, c in enumerate(b.cols):
-                    if b.diagonal:
-                        J[ci, t * nv + c] += b.J[n, i, ci]
-                    else:
-                        J[:, t * nv + c] += b.J[n, i, :, ci]
-            Js.append(J)
-            rs.append(b.r[n])
-    return np.vstack(Js), np.concatenate(rs)
 
 
 def _from_band(ab, n):
@@ -85,7 +67,7 @@ def test_active_band_equals_dense_normal_equations(T, held, gap):
     # band without zeroing it first (the rest of the band is zeroed after them)
     fig, blocks = _blocks(T, gap=gap)
     nv = fig.nv
-    J, r = _dense(blocks, T, nv)
+    J, r = dense_jacobian(blocks, T, nv)
     active = None if not held else np.arange(nv) % 3 != 1
     ne = ActiveNormalEquations(T, nv, blocks, active)
     idx = (np.arange(T)[:, None] * nv + ne.act[None, :]).ravel()
@@ -109,7 +91,7 @@ def test_active_band_equals_dense_normal_equations(T, held, gap):
 def test_band_of_diagonal_blocks_only_is_rebuilt_from_zero():
     fig, blocks = _blocks(7)
     blocks = [b for b in blocks if b.diagonal]
-    J, r = _dense(blocks, 7, fig.nv)
+    J, r = dense_jacobian(blocks, 7, fig.nv)
     ne = ActiveNormalEquations(7, fig.nv, blocks)
     ne.ab[...] = 1.0  # what a factorisation leaves behind
     ne.assemble(blocks)
@@ -124,7 +106,7 @@ def test_one_frame_with_many_row_groups_and_a_frame_twice():
                        "c", diagonal=True),
               RowBlock(np.array([[0, 0]]), rng.normal(size=(1, 2)), rng.normal(size=(1, 2, 2)), np.array([4, 7]), "d",
                        diagonal=True)]
-    J, r = _dense(blocks, 1, 10)
+    J, r = dense_jacobian(blocks, 1, 10)
     for active in (None, np.arange(10) != 5):
         ne = ActiveNormalEquations(1, 10, blocks, active)
         g_b, _ = ne.assemble(blocks)

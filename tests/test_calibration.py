@@ -19,8 +19,7 @@ import pytest
 import pinrecon as pr
 from pinrecon.cli import main
 from pinrecon.problem import default_calibrate, make_problem
-from pinrecon.synthetic import bundled_motion, coco_body_tracks, perspective_side_camera
-from pinrecon.tracks import keyframes_from_points
+from pinrecon.synthetic import bundled_motion
 
 SEGMENTS = {
     "thigh": [("left_hip", "left_knee"), ("right_hip", "right_knee")],
@@ -50,22 +49,8 @@ def _pa_mpjpe_mm(P, G):
     return 1000 * float(np.mean(err))
 
 
-@pytest.fixture(scope="module")
-def walk():
-    """The first 2 s of the CMU walk at 60 fps, 12 body points with 2 px noise through a
-    perspective camera (f = 1100 px, 1280 x 720), 5 cm point keyframes every 0.25 s."""
-    bfig, q, fps = bundled_motion("walk")
-    q, fps = q[:240:2], fps / 2
-    cam = perspective_side_camera(q, 45.0, distance_m=6.0, f_px=1100.0, center=(640.0, 360.0))
-    tracks, P = coco_body_tracks(bfig, q, cam, fps=fps, noise_px=2.0, seed=1)
-    rng = np.random.default_rng(2)
-    kf = keyframes_from_points(list(range(0, len(q), 15)), P + rng.normal(0.0, 0.05, P.shape), list(tracks.names),
-                               0.05)
-    return cam, tracks, P, kf
-
-
-def _run(walk, calibrate, focal_start=1.0):
-    cam, tracks, P, kf = walk
+def _run(case, calibrate, focal_start=1.0):
+    cam, tracks, P, kf = case
     K = cam.K.copy()
     K[:2, :2] *= focal_start
     with warnings.catch_warnings():
@@ -82,11 +67,12 @@ def _run(walk, calibrate, focal_start=1.0):
 
 
 @pytest.fixture(scope="module")
-def runs(walk):
-    return {"none": _run(walk, "none"), "lengths": _run(walk, None), "camera": _run(walk, "lengths+camera", 0.7)}
+def runs(coco_walk):
+    return {"none": _run(coco_walk, "none"), "lengths": _run(coco_walk, None),
+            "camera": _run(coco_walk, "lengths+camera", 0.7)}
 
 
-def test_the_generic_humans_proportions_are_calibrated_by_default_with_keyframes(walk, runs):
+def test_the_generic_humans_proportions_are_calibrated_by_default_with_keyframes(coco_walk, runs):
     res, m = runs["lengths"]
     assert res.calibration["mode"] == "lengths"
     # the generic human's forearm is ~51 % too long for this subject, its shank 7.5 %
@@ -114,7 +100,7 @@ def test_focal_length_started_30_percent_short_is_recovered(runs):
     assert m["pa"] <= 1.10 * known["pa"] and m["mpjpe"] <= 1.10 * known["mpjpe"]
 
 
-def test_the_result_carries_the_calibrated_figure(walk, runs, tmp_path):
+def test_the_result_carries_the_calibrated_figure(coco_walk, runs, tmp_path):
     res, _ = runs["lengths"]
     fig = res.figure
     assert "proportions" in fig.meta and fig.meta["proportions"]["factors"] == res.calibration["factors"]
@@ -131,8 +117,8 @@ def test_the_result_carries_the_calibrated_figure(walk, runs, tmp_path):
     assert "calibration: lengths" in res.summary() and "forearm" in res.summary()
 
 
-def test_default_calibration_rules(walk):
-    _, tracks, _, kf = walk
+def test_default_calibration_rules(coco_walk):
+    _, tracks, _, kf = coco_walk
     human = pr.Figure.human()
     assert default_calibrate(human, kf) == "lengths"
     assert default_calibrate(human, [kf[0]]) == "lengths"
@@ -142,10 +128,10 @@ def test_default_calibration_rules(walk):
     bfig, _, _ = bundled_motion("walk")
     assert default_calibrate(bfig, kf) == "none"  # a BVH's own skeleton
     assert default_calibrate(pr.Figure.human(height=1.6), kf) == "lengths"
-    cal = make_problem(human, tracks, walk[0], kf, calibrate="lengths").figure_at(np.full(9, 0.1))
+    cal = make_problem(human, tracks, coco_walk[0], kf, calibrate="lengths").figure_at(np.full(9, 0.1))
     assert default_calibrate(cal, kf) == "none"  # already calibrated
     with pytest.raises(pr.InputError, match="calibrate"):
-        make_problem(human, tracks, walk[0], kf, calibrate="length")
+        make_problem(human, tracks, coco_walk[0], kf, calibrate="length")
 
 
 def test_human_height_scales_the_stature():
@@ -162,8 +148,8 @@ def test_human_height_scales_the_stature():
         pr.Figure.human(height=17.0)
 
 
-def test_cli_calibrate_save_figure_and_export_round_trip(walk, tmp_path):
-    cam, tracks, P, kf = walk
+def test_cli_calibrate_save_figure_and_export_round_trip(coco_walk, tmp_path):
+    cam, tracks, P, kf = coco_walk
     short = tracks.frames(0, 60)
     keys = pr.Keyframes([k for k in kf if k.frame < 60])
     short.save(tmp_path / "tracks.json")

@@ -22,7 +22,6 @@ from pinrecon.starts.camera_auto import (
     camera_scale_from_keyframes,
     orthographic_from_keyframes,
 )
-from pinrecon.synthetic import bundled_motion, coco_body_tracks, perspective_side_camera
 from pinrecon.tracks import keyframes_from_points
 
 SIZE = (1280.0, 720.0)
@@ -107,31 +106,17 @@ def test_focal_length_and_scale_start_from_keyframes():
     assert camera_scale_from_keyframes(guess, tracks_o, keyframes_from_points([0], X[None, :3], names[:3], 0.05)) is guess
 
 
-@pytest.fixture(scope="module")
-def walk():
-    """Issue 12's setting on the first 2 s of the CMU walk (60 fps): 12 COCO-17 points,
-    2 px noise, perspective f = 1100 px on 1280 x 720; keyframes (5 cm) every 0.25 s."""
-    bfig, q, fps = bundled_motion("walk")
-    q, fps = q[:240:2], fps / 2
-    cam = perspective_side_camera(q, 45.0, distance_m=6.0, f_px=1100.0, center=(640.0, 360.0))
-    tracks, P = coco_body_tracks(bfig, q, cam, fps=fps, noise_px=2.0, seed=1)
-    rng = np.random.default_rng(2)
-    kf = keyframes_from_points(list(range(0, len(q), 15)), P + rng.normal(0.0, 0.05, P.shape), list(tracks.names),
-                               0.05)
-    return cam, tracks, P, kf
-
-
 def _pa(res, tracks, P):
     return _pa_mpjpe_mm(res.keypoints3d[:, res.figure.keypoint_index(list(tracks.names))], P)
 
 
-def test_auto_camera_against_the_true_camera(walk):
+def test_auto_camera_against_the_true_camera(coco_walk):
     """Without keyframes (measured: PA-MPJPE 76.1 against 75.8 mm, focal 1088 px from the
     default 1108.5 px): the focal length is within 10 % only because the default field of
     view is near this camera's; one view barely moves it (docs/globals.md section 6), so
     the result must say the tracks do not determine it. With keyframes the camera comes
     from them (measured: 30.7 against 30.3 mm, focal 1087 px)."""
-    cam, tracks, P, kf = walk
+    cam, tracks, P, kf = coco_walk
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         true = pr.reconstruct(pr.Figure.human(), tracks, cam)
@@ -166,8 +151,8 @@ def test_orthographic_auto_recovers_the_scale_with_the_subjects_own_figure():
     assert res.camera.scale == pytest.approx(300.0, rel=0.01)  # measured 277 -> 300.1
 
 
-def test_cli_camera_auto_and_save_camera(walk, tmp_path, capsys):
-    cam, tracks, P, kf = walk
+def test_cli_camera_auto_and_save_camera(coco_walk, tmp_path, capsys):
+    cam, tracks, P, kf = coco_walk
     tracks.frames(0, 60).save(tmp_path / "tracks.json")
     base = ["reconstruct", "--figure", "human", "--tracks", str(tmp_path / "tracks.json"), "--camera", "auto",
             "--out", str(tmp_path / "r.npz")]

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from dense_blocks import dense_jacobian
 
 import pinrecon as pr
 from pinrecon.contact import (
@@ -50,16 +51,6 @@ def _rows(fig, Q):
     }
 
 
-def _dense(block, nv):
-    N, m = block.r.shape
-    J = np.zeros((N, m, T * nv))
-    for n in range(N):
-        for i in range(block.frames.shape[1]):
-            t = block.frames[n, i]
-            J[n, :, t * nv : (t + 1) * nv] += block.J[n, i]
-    return J.reshape(N * m, -1)
-
-
 @pytest.mark.parametrize("name", ["contact_velocity/3D", "contact_velocity/horizontal", "contact_height", "floor"])
 def test_row_jacobian_matches_manifold_finite_differences(setting, name):
     """d r / d v_t at v = 0 against [r(q (+) eps e_i) - r(q (-) eps e_i)] / 2 eps, with
@@ -67,7 +58,7 @@ def test_row_jacobian_matches_manifold_finite_differences(setting, name):
     fig, Q = setting
     row = _rows(fig, Q)[name]
     b = row.evaluate(State(fig, Q, np.arange(T), True), True)
-    J = _dense(b, fig.nv)
+    J = dense_jacobian([b], T, fig.nv)[0]
     fd = np.zeros_like(J)
     eps = 1e-6
     for t in range(T):

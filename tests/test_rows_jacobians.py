@@ -5,9 +5,19 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from dense_blocks import dense_jacobian
 
 import pinrecon as pr
-from pinrecon.rows import JointKeyframes, JointLimits, Measurement2D, Points3D, Posture, Smoothing, State, smoothing_sigmas
+from pinrecon.rows import (
+    JointKeyframes,
+    JointLimits,
+    Measurement2D,
+    Points3D,
+    Posture,
+    Smoothing,
+    State,
+    smoothing_sigmas,
+)
 from pinrecon.synthetic import project_tracks, smooth_motion
 
 T = 5
@@ -53,21 +63,6 @@ def _evaluate(row, fig, Q, jacobian):
     return out if isinstance(out, list) else [out]
 
 
-def _dense(block, nv):
-    """(N*m, T*nv) dense Jacobian of one RowBlock."""
-    N, m = block.r.shape
-    J = np.zeros((N, m, T * nv))
-    for n in range(N):
-        for i in range(block.frames.shape[1]):
-            t = block.frames[n, i]
-            for ci, c in enumerate(block.cols):
-                if block.diagonal:
-                    J[n, ci, t * nv + c] += block.J[n, i, ci]
-                else:
-                    J[n, :, t * nv + c] += block.J[n, i, :, ci]
-    return J.reshape(N * m, -1)
-
-
 @pytest.mark.parametrize(
     "name",
     [
@@ -88,7 +83,7 @@ def test_row_jacobian_matches_manifold_finite_differences(setting, name):
     blocks = _evaluate(row, fig, Q, True)
     eps = 1e-6
     for bi, b in enumerate(blocks):
-        J = _dense(b, fig.nv)
+        J = dense_jacobian([b], T, fig.nv)[0]
         fd = np.zeros_like(J)
         for t in range(T):
             for i in range(fig.nv):
@@ -113,7 +108,7 @@ def test_robust_loss_gradient_is_exact(setting, loss):
     k = fig.keypoint_index(tr.names)
     row = Measurement2D(ortho, np.arange(T), k, tr.points, np.ones((T, len(k))), loss=loss, loss_scale_px=4.0)
     b = _evaluate(row, fig, Q, True)[0]
-    grad = _dense(b, fig.nv).T @ b.r.ravel()
+    grad = dense_jacobian([b], T, fig.nv)[0].T @ b.r.ravel()
     eps = 1e-6
     fd = np.zeros_like(grad)
     for t in range(T):

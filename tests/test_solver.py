@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from dense_blocks import dense_jacobian
 
 import pinrecon as pr
 from pinrecon.problem import ReconstructionProblem, keyframe_rows
@@ -33,29 +34,11 @@ def problem():
     return fig, prob, Qx, Q
 
 
-def _dense(blocks, T, nv):
-    Js, rs = [], []
-    for b in blocks:
-        N, m = b.r.shape
-        for n in range(N):
-            J = np.zeros((m, T * nv))
-            for i in range(b.frames.shape[1]):
-                t = b.frames[n, i]
-                for ci, c in enumerate(b.cols):
-                    if b.diagonal:
-                        J[ci, t * nv + c] += b.J[n, i, ci]
-                    else:
-                        J[:, t * nv + c] += b.J[n, i, :, ci]
-            Js.append(J)
-            rs.append(b.r[n])
-    return np.vstack(Js), np.concatenate(rs)
-
-
 def test_banded_assembly_equals_dense_normal_equations(problem):
     fig, prob, Qx, _ = problem
     blocks = _flatten(prob.evaluate(Qx, True))
     T, nv = prob.n_frames, prob.nv
-    J, r = _dense(blocks, T, nv)
+    J, r = dense_jacobian(blocks, T, nv)
     H, g = J.T @ J, J.T @ r
     ne = BandedNormalEquations(T, nv, blocks)
     D0, Dd, g_b = ne.assemble(blocks)

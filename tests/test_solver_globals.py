@@ -9,11 +9,21 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from dense_blocks import dense_jacobian
 
 import pinrecon as pr
-from pinrecon.rows import CameraScale
 from pinrecon.proportions import Proportions
-from pinrecon.rows import GlobalPrior, JointLimits, Measurement2D, Points3D, Posture, Smoothing, State, smoothing_sigmas
+from pinrecon.rows import (
+    CameraScale,
+    GlobalPrior,
+    JointLimits,
+    Measurement2D,
+    Points3D,
+    Posture,
+    Smoothing,
+    State,
+    smoothing_sigmas,
+)
 from pinrecon.solver import ArrowheadFactor, BandedNormalEquations, SolverOptions, solve
 from pinrecon.synthetic import smooth_motion
 
@@ -143,28 +153,6 @@ def test_robust_measurement_gradient_in_the_globals_is_exact(setting):
     assert np.abs(grad - fd).max() <= 1e-6 * np.abs(grad).max()
 
 
-def _dense_system(blocks, T_, nv, n_g):
-    """Dense J (rows x (T nv + n_g)) and r, entry by entry from the row blocks."""
-    Js, rs = [], []
-    for b in blocks:
-        N, m = b.r.shape
-        for n in range(N):
-            J = np.zeros((m, T_ * nv + n_g))
-            for i in range(b.frames.shape[1]):
-                t = b.frames[n, i]
-                for ci, c in enumerate(b.cols):
-                    if b.diagonal:
-                        J[ci, t * nv + c] += b.J[n, i, ci]
-                    else:
-                        J[:, t * nv + c] += b.J[n, i, :, ci]
-            if b.Jg is not None:
-                for gi, c in enumerate(b.gcols):
-                    J[:, T_ * nv + c] += b.Jg[n, :, gi]
-            Js.append(J)
-            rs.append(b.r[n])
-    return np.vstack(Js), np.concatenate(rs)
-
-
 @pytest.fixture(scope="module")
 def small_problem():
     fig = pr.Figure.human()
@@ -193,7 +181,7 @@ def test_schur_solve_equals_a_dense_solve_of_the_damped_normal_equations(small_p
     prob, Qx, g = small_problem
     T_, nv, n_g = prob.n_frames, prob.nv, len(g)
     blocks = _flat(prob.evaluate(Qx, True, g))
-    J, r = _dense_system(blocks, T_, nv, n_g)
+    J, r = dense_jacobian(blocks, T_, nv, n_g)
     H, grad = J.T @ J, J.T @ r
     ne = BandedNormalEquations(T_, nv, blocks)
     D0, Dd, gx = ne.assemble(blocks)
