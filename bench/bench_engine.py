@@ -21,7 +21,9 @@ plus pinrecon's weak posture prior. Start: the keyframes' poses interpolated (wh
    camera's scale as global unknowns (``calibrate="lengths+camera"``: the 9 proportion
    groups COCO-17 sees and the orthographic scale, eliminated by the Schur complement).
    Speed: seconds per iteration over the same fixed number of iterations from the same
-   start, with and without; memory: the calibrated columns of table 2. The motion-only
+   start, with and without, in 11 interleaved pairs (``--calibration-pairs``; the
+   machine's speed drifts by tens of per cent between minutes, so the ratio is the median
+   of the pairs' ratios, with their range); memory: the calibrated columns of table 2. The motion-only
    rows of tables 1-3 are built with ``calibrate="none"`` (the human's default would be
    ``"lengths"`` with these keyframes).
 
@@ -338,7 +340,7 @@ def speed_table(n_frames, repeats=5):
         )
 
 
-def calibration_speed(n_frames, iterations=10, repeats=5):
+def calibration_speed(n_frames, iterations=10, repeats=11):
     """CPU seconds per iteration with and without the globals, same start, same number
     of iterations (ftol 0: no early stop), ``repeats`` interleaved runs each (CPU time of
     this process): the ratio of each interleaved pair (robust to the machine's drift), its
@@ -467,6 +469,8 @@ def main():
     ap.add_argument("--no-analytic", action="store_true", help="skip scipy with the analytic Jacobian")
     ap.add_argument("--skip-calibration", action="store_true", help="skip the calibration rows and columns")
     ap.add_argument("--skip-speed", action="store_true", help="skip table 1")
+    ap.add_argument("--calibration-pairs", type=int, default=11,
+                    help="interleaved motion-only / calibrated runs for the per-iteration ratio (table 4)")
     ap.add_argument("--skip-dance", action="store_true", help="skip the CMU dance CLI run")
     ap.add_argument("--long-sizes", type=int, nargs="*", default=[10000, 100000],
                     help="frames of the long-clip rows (100000 takes several minutes)")
@@ -486,7 +490,7 @@ def main():
     if not args.skip_speed:
         speed_table(args.frames)
     if not args.skip_calibration:
-        calibration_speed(args.frames)
+        calibration_speed(args.frames, repeats=args.calibration_pairs)
     if not args.skip_memory:
         memory_table(args.memory_sizes, calibration=not args.skip_calibration)
     if not args.skip_scipy:

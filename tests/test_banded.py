@@ -174,3 +174,32 @@ def test_trajectory_integration_equals_pinocchio(figures, name):
     V = rng.normal(size=(n, fig.nv)) * np.where(np.arange(n) % 2, 1.0, 1e-7)[:, None]  # small rotations too
     expected = np.stack([pin.integrate(fig.model, q, v) for q, v in zip(Q, V)])
     np.testing.assert_allclose(fig.integrate(Q, V), expected, atol=1e-13)
+
+
+@pytest.mark.parametrize("n, kd, k, chunk_rows", [(185, 7, 3, 30), (400, 12, 10, 48), (90, 5, 1, 20), (50, 6, 4, 500)])
+def test_forward_solve_in_chunks_equals_a_dense_triangular_solve(monkeypatch, n, kd, k, chunk_rows):
+    """``forward_solve`` cuts the band factor into chunks of rows (the last one here
+    shorter than ``kd`` where n allows): the result is ``L^-1 B`` computed densely."""
+    from scipy.linalg import solve_triangular
+    from scipy.linalg.lapack import dpbtrf
+
+    from pinrecon import banded
+
+    rng = np.random.default_rng(n + kd)
+    A = np.zeros((n, n))
+    for d in range(kd + 1):
+        v = rng.uniform(-1.0, 1.0, n - d)
+        A[np.arange(d, n), np.arange(n - d)] = v
+        A[np.arange(n - d), np.arange(d, n)] = v
+    A += (2.0 * kd + 2.0) * np.eye(n)  # diagonally dominant: positive definite
+    ab = np.zeros((kd + 1, n), order="F")
+    for d in range(kd + 1):
+        ab[d, : n - d] = np.diagonal(A, -d)
+    c, info = dpbtrf(ab, lower=1)
+    assert info == 0
+    B = rng.standard_normal((n, k))
+    monkeypatch.setattr(banded, "_CHUNK_BYTES", 8 * (kd + 1) * chunk_rows)
+    Z = banded.forward_solve(c, B)
+    L = np.linalg.cholesky(A)
+    ref = solve_triangular(L, B, lower=True)
+    assert np.abs(Z - ref).max() <= 1e-12 * np.abs(ref).max()

@@ -244,7 +244,13 @@ def test_settings_are_checked():
 def walk_on_the_floor():
     """The bundled walk at 30 fps, its own skeleton, 22 body points with 1 px noise,
     keyframes every 8 frames: without and with the floor and contact rows."""
-    from pinrecon.synthetic import body_keypoints, bundled_motion, point_keyframes, project_tracks, side_camera
+    from pinrecon.synthetic import (
+        body_keypoints,
+        bundled_motion,
+        point_keyframes,
+        project_tracks,
+        side_camera,
+    )
 
     fig, q, fps = bundled_motion("walk")
     q, fps = q[::4], fps / 4

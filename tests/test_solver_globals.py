@@ -24,6 +24,8 @@ from pinrecon.rows import (
     State,
     smoothing_sigmas,
 )
+from pinrecon.rows.contact import ContactHeight, ContactVelocity
+from pinrecon.rows.floor import FloorPenetration
 from pinrecon.solver import ArrowheadFactor, BandedNormalEquations, SolverOptions, solve
 from pinrecon.synthetic import smooth_motion
 
@@ -89,6 +91,10 @@ def _rows(fig, props, Q, ortho, persp):
         ),
         "points3d": Points3D([1, 3], k, P[[1, 3]] + 0.05, 0.02),
         "prior": GlobalPrior(np.arange(n), np.linspace(-0.1, 0.1, n), 0.1),
+        # feet rows on every keypoint, a tilted floor (every point below it: the hinge is on)
+        "contact velocity": ContactVelocity(k, np.ones((T, fig.K), bool), 30.0, normal=[0.1, 0.2, 1.0]),
+        "contact height": ContactHeight(k, np.ones((T, fig.K), bool), [0.1, 0.2, 1.0], 0.0, 0.03),
+        "floor penetration": FloorPenetration(k, np.arange(T), [0.1, 0.2, 1.0], 5.0, 0.01),
     }
 
 
@@ -115,6 +121,9 @@ def _dense_g(block, n_g):
         "measurement/distorted perspective+focal",
         "points3d",
         "prior",
+        "contact velocity",
+        "contact height",
+        "floor penetration",
     ],
 )
 def test_global_jacobian_columns_match_finite_differences(setting, name):
@@ -198,6 +207,36 @@ def test_schur_solve_equals_a_dense_solve_of_the_damped_normal_equations(small_p
     dx, dg = ArrowheadFactor(ab, B, C + lam * np.diag(d_g)).solve(-gx, -gg)
     step = np.linalg.solve(H + lam * np.diag(np.r_[d_x, d_g]), -grad)
     assert np.abs(np.r_[dx, dg] - step).max() <= 1e-9 * np.abs(step).max()
+
+
+@pytest.mark.parametrize("held", [None, "unseen", [0, 1, 2, 9, 20]])
+def test_the_active_assembler_border_equals_the_dense_one(small_problem, held):
+    """What the solver uses (``ActiveNormalEquations``) against J^T J of the dense
+    Jacobian, over the active tangent entries: all, those the measurements see (their
+    columns are then consecutive and their product is written straight into the border)
+    or some held."""
+    from pinrecon.banded import ActiveNormalEquations
+
+    prob, Qx, g = small_problem
+    T_, nv, n_g = prob.n_frames, prob.nv, len(g)
+    blocks = _flat(prob.evaluate(Qx, True, g))
+    J, r = dense_jacobian(blocks, T_, nv, n_g)
+    active = np.ones(nv, bool)
+    if held == "unseen":
+        active[:] = False
+        active[np.asarray(blocks[0].cols)] = True
+    elif held is not None:
+        active[held] = False
+    cols = np.r_[(np.arange(T_)[:, None] * nv + np.flatnonzero(active)[None, :]).ravel(), T_ * nv + np.arange(n_g)]
+    Ja = J[:, cols]
+    H, grad = Ja.T @ Ja, Ja.T @ r
+    n = len(cols) - n_g
+    ne = ActiveNormalEquations(T_, nv, blocks, active)
+    gx, (B, C, gg) = ne.assemble(blocks, n_g)
+    tol = 1e-12 * np.abs(H).max()
+    assert np.abs(B - H[:n, n:]).max() <= tol
+    assert np.abs(C - H[n:, n:]).max() <= tol
+    np.testing.assert_allclose(np.r_[gx, gg], grad, rtol=0, atol=1e-12 * np.abs(grad).max())
 
 
 def test_solve_with_globals_descends_and_holds_frozen_globals(small_problem):

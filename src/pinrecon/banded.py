@@ -32,14 +32,58 @@ from __future__ import annotations
 import numpy as np
 from numpy.lib.stride_tricks import as_strided
 from scipy.linalg import LinAlgError, cho_factor, cho_solve
+from scipy.linalg.blas import dtrmm as _trmm
 from scipy.linalg.lapack import dpbtrf as _pbtrf
 from scipy.linalg.lapack import dpbtrs as _pbtrs
 from scipy.linalg.lapack import dtbtrs as _tbtrs
 
-__all__ = ["ActiveNormalEquations", "ArrowheadFactor", "BandedNormalEquations"]
+__all__ = ["ActiveNormalEquations", "ArrowheadFactor", "BandedNormalEquations", "forward_solve"]
 
 #: frames written as slices when a row block's frames form at most this many runs
 _MAX_RUNS = 16
+
+#: bytes of band factor per chunk of :func:`forward_solve` (stays in the core's cache
+#: while every right-hand side passes through it)
+_CHUNK_BYTES = 2 << 20
+
+
+def forward_solve(c: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """``L^-1 B`` for the lower band factor ``c`` ((kd + 1, n), Fortran-ordered, as
+    ``dpbtrf`` leaves it) and a dense ``B`` (n, k).
+
+    The same numbers as ``dtbtrs(c, B)``, which streams the whole factor once per column
+    of ``B``; here the factor is cut into chunks of rows of about ``_CHUNK_BYTES`` that
+    every column passes through while they are in cache. Chunk ``[r0, r1)`` is the band
+    slice ``c[:, r0:r1]`` (its own diagonal block, a contiguous band matrix: no copy), and
+    the previous chunk's last ``kd`` solutions enter its first ``kd`` right-hand sides
+    through the factor's ``kd x kd`` upper-triangular coupling block
+    ``L[r0 : r0 + kd, r0 - kd : r0]``, read in place (``L[i, j]`` is the ``i + j kd``-th
+    double of the band storage, so the block is a Fortran matrix with leading dimension
+    ``kd``; its strictly lower part aliases other entries and is never read by ``dtrmm``).
+    About a third faster than ``dtbtrs`` for ten columns of the 1000-frame human problem.
+    Raises :class:`scipy.linalg.LinAlgError` on a zero pivot."""
+    kd, n = c.shape[0] - 1, c.shape[1]
+    B = np.asarray(B, float)
+    rows = max(4 * max(kd, 1), _CHUNK_BYTES // (8 * (kd + 1)))
+    if n <= rows or kd == 0 or B.shape[1] < 2 or not c.flags.f_contiguous:
+        Z, info = _tbtrs(c, B, uplo="L", trans="N")
+        if info != 0:
+            raise LinAlgError(f"banded triangular solve failed (info {info})")
+        return Z
+    flat = c.reshape(-1, order="F")
+    Z = np.empty(B.shape, order="F")
+    for r0 in range(0, n, rows):
+        r1 = min(n, r0 + rows)
+        rhs = np.array(B[r0:r1], order="F")
+        if r0:
+            U = as_strided(flat[r0 + (r0 - kd) * kd :], shape=(kd, kd), strides=(8, 8 * kd))
+            m = min(kd, r1 - r0)
+            rhs[:m] -= _trmm(1.0, U, np.asfortranarray(Z[r0 - kd : r0]), lower=0)[:m]
+        z, info = _tbtrs(c[:, r0:r1], rhs, uplo="L", trans="N")
+        if info != 0:
+            raise LinAlgError(f"banded triangular solve failed (info {info + r0 if info > 0 else info})")
+        Z[r0:r1] = z
+    return Z
 
 
 class _Frames:
@@ -313,6 +357,7 @@ class ActiveNormalEquations:
         B = np.zeros((n_g, T, na)).transpose(1, 2, 0)  # (T, na, n_g), column-major as (n, n_g)
         C = np.zeros((n_g, n_g))
         gg = np.zeros(n_g)
+        fresh = True  # nothing added into B yet: the first product over runs of frames is written straight in
         for b, p in zip(blocks, self.plans):
             if b.Jg is None or b.r.size == 0:
                 continue
@@ -328,8 +373,14 @@ class ActiveNormalEquations:
             rest = (ci, gi) if isinstance(ci, slice) and isinstance(gi, slice) else (p.cc[:, None], gc[None, :])
             for i, (fr, _) in enumerate(p.grad):
                 Ji = J[:, i]
-                Bi = Ji[:, :, None] * b.Jg if p.diagonal else np.matmul(Ji.transpose(0, 2, 1), b.Jg)  # (N, c, g)
-                fr.add(B, rest, Bi)
+                if fresh and not p.diagonal and fr.runs is not None and isinstance(rest[0], slice):
+                    Jt = Ji.transpose(0, 2, 1)
+                    for a, b_, o in fr.runs:  # disjoint runs of zeros: matmul writes there (no temporary, no add)
+                        np.matmul(Jt[o : o + b_ - a], b.Jg[o : o + b_ - a], out=B[(slice(a, b_),) + rest])
+                else:
+                    Bi = Ji[:, :, None] * b.Jg if p.diagonal else np.matmul(Ji.transpose(0, 2, 1), b.Jg)  # (N, c, g)
+                    fr.add(B, rest, Bi)
+                fresh = False
         return B.reshape(T * na, n_g), C, gg
 
     def gradient(self, blocks, residuals) -> np.ndarray:
@@ -541,13 +592,11 @@ class ArrowheadFactor:
             # motion (a column of B that is zero, e.g. a held global, stays zero)
             coupled = np.flatnonzero(np.abs(B).max(axis=0) > 0) if B.shape[0] else np.zeros(0, int)
             if len(coupled) == self.n_g:
-                Z, info = _tbtrs(c, B, uplo="L", trans="N")
+                Z = forward_solve(c, B)
             else:
-                Z, info = np.zeros(B.shape, order="F"), 0
+                Z = np.zeros(B.shape, order="F")
                 if len(coupled):
-                    Z[:, coupled], info = _tbtrs(c, B[:, coupled], uplo="L", trans="N")
-            if info != 0:
-                raise LinAlgError(f"banded triangular solve failed (info {info})")
+                    Z[:, coupled] = forward_solve(c, B[:, coupled])
             S = C - Z.T @ Z
             self.Z, self.S = Z, cho_factor(S, lower=True, check_finite=False)
 

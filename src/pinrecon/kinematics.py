@@ -27,6 +27,7 @@ import pinocchio as pin
 __all__ = [
     "BATCH_MIN_FRAMES",
     "batch_joint_kinematics",
+    "integrate_trajectory",
     "joint_kinds",
     "joint_kinematics",
     "keypoint_jacobians_from_world",
@@ -34,8 +35,8 @@ __all__ = [
     "loop_joint_kinematics",
     "point_jacobian_factors",
     "point_kinematics",
+    "rows_of",
     "support_mask",
-    "integrate_trajectory",
 ]
 
 #: below this many frames Pinocchio frame by frame is cheaper than the NumPy recursion
@@ -268,6 +269,15 @@ def support_mask(model, joint_ids) -> np.ndarray:
             if s > 0:
                 mask[i, model.idx_vs[s] : model.idx_vs[s] + model.nvs[s]] = True
     return mask
+
+
+def rows_of(a: np.ndarray, idx) -> np.ndarray:
+    """``a[idx]``, as a view when ``idx`` is a long run of consecutive indices."""
+    idx = np.asarray(idx)
+    n = len(idx)
+    if n > 32 and idx[-1] - idx[0] == n - 1 and bool((np.diff(idx) == 1).all()):
+        return a[idx[0] : idx[-1] + 1]
+    return a[idx]
 
 
 def integrate_trajectory(model, kinds, Q, V):

@@ -45,9 +45,10 @@ from .kinematics import (
     joint_kinematics,
     keypoint_jacobians_from_world,
     point_kinematics,
+    rows_of,
 )
 
-__all__ = ["HUMAN_GROUPS", "KEYPOINT_SEGMENT_SUFFIX", "Proportions", "Segment", "mirror_name"]
+__all__ = ["HUMAN_GROUPS", "KEYPOINT_SEGMENT_SUFFIX", "FactorDerivatives", "Proportions", "Segment", "mirror_name"]
 
 KEYPOINT_SEGMENT_SUFFIX = ".keypoints"
 
@@ -126,10 +127,70 @@ class Segment:
 class _Scaled:
     """The model and keypoint data of one log-factor vector (cached by Proportions)."""
 
-    def __init__(self, model, kp_joint, kp_p_joint, anchor_w, end_w):
-        self.model, self.data = model, model.createData()
+    def __init__(self, model, kp_joint, kp_p_joint, anchor_w, end_w, data, placements):
+        self.model, self.data, self.placements = model, data, placements
         self.kp_joint, self.kp_p_joint = kp_joint, kp_p_joint
         self.anchor_w, self.end_w = anchor_w, end_w
+
+
+class FactorDerivatives:
+    """d p_k / d theta (T, K, 3, n) of the scaled figure along a trajectory, kept as its
+    factors: ``V[t, b] = R_world(a_b) (s_b t_b)`` (T, B, 3) for every scaled bone, the
+    constant map ``C`` (B, K n) from bones to (keypoint, group) and the scaled end offsets
+    ``d_end[t, e]`` (T, E, 3) of the keypoints ``ends`` in groups ``end_groups``:
+
+        d p_k / d theta_g = sum_b V[t, b] C[b, k, g]  (+ d_end[t, e] when k = ends[e], g = end_groups[e])
+
+    :meth:`projected` applies a constant matrix ``A`` (a camera's ``d uv / d X``, a floor
+    normal) to ``V`` before the product with ``C`` (r rows instead of 3, only the selected
+    keypoints' columns); :meth:`full` forms the whole array once."""
+
+    def __init__(self, T, K, n, V, C, ends, end_groups, d_end):
+        self.T, self.K, self.n = T, K, n
+        self.V, self.C = V, C
+        self.ends, self.end_groups, self.d_end = ends, end_groups, d_end
+        self._full = None
+
+    def full(self) -> np.ndarray:
+        """(T, K, 3, n), formed on the first call."""
+        if self._full is None:
+            T, K, n = self.T, self.K, self.n
+            dp = np.zeros((T, 3, K * n))
+            if self.V is not None:  # one matrix product for all frames (a batched matmul of T small ones is slower)
+                dp = (self.V.transpose(0, 2, 1).reshape(T * 3, -1) @ self.C).reshape(T, 3, K * n)
+            dp = dp.reshape(T, 3, K, n).transpose(0, 2, 1, 3)  # a view: (T, K, 3, n) strides over (T, 3, K, n)
+            if len(self.ends):
+                dp[:, self.ends, :, self.end_groups] += self.d_end.transpose(1, 0, 2)
+            self._full = dp
+        return self._full
+
+    def projected(self, rows, keypoints, A, out=None) -> np.ndarray:
+        """(N, M, r, n): ``A d p_k / d theta`` at trajectory rows ``rows`` (N,) for
+        ``keypoints`` (M,), ``A`` an (r, 3) matrix or per-point (N, M, r, 3) matrices;
+        written into ``out`` when given."""
+        A = np.asarray(A, float)
+        kps = np.asarray(keypoints, dtype=int)
+        if A.ndim != 2 or self._full is not None:
+            return np.matmul(A, np.take(rows_of(self.full(), rows), kps, axis=1), out=out)
+        N, M, r, n = len(rows), len(kps), A.shape[0], self.n
+        if out is None:
+            out = np.empty((N, M, r, n))
+        if self.V is None:
+            out[...] = 0.0
+        else:
+            B = self.V.shape[1]
+            VA = np.matmul(rows_of(self.V, rows), A.T)  # (N, B, r)
+            Ck = self.C.reshape(B, self.K, n)[:, kps].reshape(B, M * n)
+            X = VA.transpose(0, 2, 1).reshape(N * r, B) @ Ck
+            out[...] = X.reshape(N, r, M, n).transpose(0, 2, 1, 3)
+        if len(self.ends):
+            pos = {int(e): i for i, e in enumerate(self.ends)}
+            m_idx = [m for m, k in enumerate(kps) if int(k) in pos]
+            if m_idx:
+                e_idx = [pos[int(kps[m])] for m in m_idx]
+                D = np.matmul(rows_of(self.d_end, rows)[:, e_idx], A.T)  # (N, E', r)
+                out[:, m_idx, :, self.end_groups[e_idx]] += D.transpose(1, 0, 2)
+        return out
 
 
 class Proportions:
@@ -246,6 +307,8 @@ class Proportions:
         self._kinds = joint_kinds(model)
         self._cache_key: bytes | None = None
         self._cache: _Scaled | None = None
+        self._work: pin.Model | None = None
+        self._work_data = None
 
     # ------------------------------------------------------------------ building
     @classmethod
@@ -331,7 +394,10 @@ class Proportions:
         end_s = np.ones(len(self._P0))
         for s, f in zip(self.segments, seg_s):
             (end_s if s.kind == "keypoints" else frame_s)[s.frame] = f
-        model = pin.Model(self._model)
+        if self._work is None:  # one working model and its data, rewritten for each factor vector
+            self._work = pin.Model(self._model)
+            self._work_data = self._work.createData()
+        model = self._work
         P = list(self._P0)
         for i in range(1, len(P)):
             L = self._local[i]
@@ -341,11 +407,8 @@ class Proportions:
                 L = pin.SE3(L.rotation, L.translation * frame_s[i])
             if self._type_joint[i]:
                 model.jointPlacements[int(self._pjoint[i])] = P[self._parent[i]] * L
-            else:
+            else:  # a frame: its placement is written only into copies (``model()``)
                 P[i] = P[self._parent[i]] * L
-                fr = model.frames[i]
-                fr.placement = P[i]
-                model.frames[i] = fr
         offsets = self._kp_offset * end_s[self._kp_frame][:, None]
         kp_p = np.array([P[f].act(o) for f, o in zip(self._kp_frame, offsets)]).reshape(-1, 3)
         anchor_w = np.array(
@@ -354,12 +417,20 @@ class Proportions:
         ).reshape(-1, 3)
         end_w = np.array([P[f].rotation @ o for f, o in zip(self._kp_frame, offsets)]).reshape(-1, 3)
         end_w[self._kp_end_group < 0] = 0.0
-        self._cache_key, self._cache = key, _Scaled(model, self._kp_joint, kp_p, anchor_w, end_w)
+        self._cache_key = key
+        self._cache = _Scaled(model, self._kp_joint, kp_p, anchor_w, end_w, self._work_data, P)
         return self._cache
 
     def model(self, log_factors) -> pin.Model:
         """A copy of the Pinocchio model with the factors applied (joint and frame placements)."""
-        return pin.Model(self._scaled(self.check(log_factors)).model)
+        sc = self._scaled(self.check(log_factors))
+        model = pin.Model(sc.model)
+        for i in range(1, len(sc.placements)):
+            if self._local[i] is not None and not self._type_joint[i]:
+                fr = model.frames[i]
+                fr.placement = sc.placements[i]
+                model.frames[i] = fr
+        return model
 
     def _poses(self, sc: _Scaled, Q: np.ndarray, jacobian: bool):
         """World rotations (T, U, 3, 3) and origins (T, U, 3) of the joints ``self._joints``
@@ -381,28 +452,24 @@ class Proportions:
                                 sc.kp_p_joint, False)  # formed in chunks of frames
         return P
 
-    def world_kinematics(self, log_factors, Q):
+    def world_kinematics(self, log_factors, Q, full: bool = True):
         """Keypoints (T, K, 3), the WORLD joint Jacobian (T, 6, nv) and d p / d theta
         (T, K, 3, n) of the scaled figure along Q (T, nq); the keypoint Jacobians are
         :func:`pinrecon.kinematics.keypoint_jacobians_from_world` of the first two with the
-        figure's ``keypoint_support`` (scaling changes no joint's support)."""
+        figure's ``keypoint_support`` (scaling changes no joint's support). With
+        ``full=False`` the last is a :class:`FactorDerivatives` (the derivatives kept as
+        their factors, projected or formed on demand)."""
         sc = self._scaled(self.check(log_factors))
         Q = self._check_q(Q)
         R, pj, Jw = self._poses(sc, Q, True)
         T, K = Q.shape[0], len(self._kp_joint)
         Rk = R[:, self._kp_slot]
         p = np.einsum("tkab,kb->tka", Rk, sc.kp_p_joint) + pj[:, self._kp_slot]
-        dp = np.zeros((T, 3, K * self.n))
-        if len(self._bone):
-            V = np.einsum("tbxy,by->tbx", R[:, self._anchor_slot], sc.anchor_w)  # (T, B, 3)
-            # one matrix product for all frames (a batched matmul of T small ones is slower)
-            dp = (V.transpose(0, 2, 1).reshape(T * 3, -1) @ self._C).reshape(T, 3, K * self.n)
-        dp = dp.reshape(T, 3, K, self.n).transpose(0, 2, 1, 3).copy()
+        V = np.einsum("tbxy,by->tbx", R[:, self._anchor_slot], sc.anchor_w) if len(self._bone) else None  # (T, B, 3)
         ends = np.where(self._kp_end_group >= 0)[0]
-        if len(ends):
-            d_end = np.einsum("tkxy,ky->tkx", Rk[:, ends], sc.end_w[ends])  # (T, E, 3)
-            dp[:, ends, :, self._kp_end_group[ends]] += d_end.transpose(1, 0, 2)
-        return p, Jw, dp
+        d_end = np.einsum("tkxy,ky->tkx", Rk[:, ends], sc.end_w[ends]) if len(ends) else None  # (T, E, 3)
+        dp = FactorDerivatives(T, K, self.n, V, self._C, ends, self._kp_end_group[ends], d_end)
+        return p, Jw, (dp.full() if full else dp)
 
     def kinematics(self, log_factors, Q):
         """Keypoints (T, K, 3), d p / d v (T, K, 3, nv) and d p / d theta (T, K, 3, n) of

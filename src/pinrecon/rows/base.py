@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..kinematics import keypoint_jacobians_from_world, point_jacobian_factors
+from ..kinematics import keypoint_jacobians_from_world, point_jacobian_factors, rows_of
 
 __all__ = ["RowBlock", "RowKind", "State", "supported_columns"]
 
@@ -94,7 +94,8 @@ class State:
     :class:`pinrecon.proportions.Proportions`) the figure's log-scale factors are
     ``g[proportion_cols]`` (default ``0 .. n-1``): ``points`` and ``jacobians`` are those of
     the figure scaled by them, and ``dpoints_dglobals[slot[t]]`` (K, 3, n) holds
-    d p_world / d g[proportion_cols] (``None`` without proportions or Jacobians).
+    d p_world / d g[proportion_cols] (``None`` without proportions or Jacobians), kept
+    as its factors (``factor_derivatives``) and formed on demand.
     """
 
     def __init__(self, figure, Q: np.ndarray, frames: np.ndarray, jacobian: bool, g=None, proportions=None,
@@ -104,7 +105,7 @@ class State:
         self.frames = frames
         self.g = None if g is None else np.asarray(g, float)
         self.proportions = proportions
-        self.dpoints_dglobals = None
+        self.factor_derivatives = None
         self.proportion_cols = np.zeros(0, dtype=int)
         self.slot = np.full(Q.shape[0], -1, dtype=int)
         self.slot[frames] = np.arange(len(frames))
@@ -119,8 +120,8 @@ class State:
             self.proportion_cols = cols
             log_factors = self.g[cols]
             if jacobian:
-                self.points, self.world_jacobians, self.dpoints_dglobals = proportions.world_kinematics(
-                    log_factors, Q[frames])
+                self.points, self.world_jacobians, self.factor_derivatives = proportions.world_kinematics(
+                    log_factors, Q[frames], full=False)
             else:
                 self.points = proportions.keypoints(log_factors, Q[frames])
         elif len(frames):
@@ -128,6 +129,12 @@ class State:
         else:
             self.points = np.zeros((0, figure.K, 3))
             self.world_jacobians = np.zeros((0, 6, figure.nv)) if jacobian else None
+
+    @property
+    def dpoints_dglobals(self) -> np.ndarray | None:
+        """(T_k, K, 3, n) d p_world / d g[proportion_cols] (``None`` without proportions or
+        Jacobians); rows should prefer :meth:`global_point_jacobians`, which projects first."""
+        return None if self.factor_derivatives is None else self.factor_derivatives.full()
 
     @property
     def jacobians(self) -> np.ndarray | None:
@@ -147,18 +154,31 @@ class State:
         one small product per frame with the WORLD joint Jacobian
         (:func:`pinrecon.kinematics.point_jacobian_factors`), without the (T_k, K, 3, nv)
         intermediate."""
-        P = _rows_of(self.points, slots)[:, keypoints]
+        P = rows_of(self.points, slots)[:, keypoints]
         G = point_jacobian_factors(P, A)  # (N, M, r, 6)
         if weights is not None:
             G = G * np.asarray(weights, float)[..., None, None]
         N, M, r = G.shape[:3]
-        Jw = _rows_of(self.world_jacobians, slots)
+        Jw = rows_of(self.world_jacobians, slots)
         support = self.figure.keypoint_support[keypoints]
         if cols is not None:
             Jw, support = Jw[:, :, cols], support[:, cols]
         J = np.matmul(G.reshape(N, M * r, 6), Jw).reshape(N, M, r, Jw.shape[-1])
         J *= support[None, :, None, :]
         return J
+
+    def global_point_jacobians(self, slots, keypoints, A=None, out=None) -> np.ndarray:
+        """(N, M, r, n): ``A d p_k / d g[proportion_cols]`` for keypoints ``keypoints`` at
+        the state's frames ``slots``, with ``A`` an (r, 3) matrix, per-point (N, M, r, 3)
+        matrices or the identity (``None``); written into ``out`` when given. A constant
+        ``A`` is applied before the derivatives are formed
+        (:meth:`pinrecon.proportions.FactorDerivatives.projected`)."""
+        return self.factor_derivatives.projected(slots, keypoints, np.eye(3) if A is None else A, out=out)
+
+    @property
+    def has_global_points(self) -> bool:
+        """Whether the keypoints depend on global unknowns (proportions) here."""
+        return self.factor_derivatives is not None and len(self.proportion_cols) > 0
 
 
 _COLUMNS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
@@ -177,10 +197,3 @@ def supported_columns(figure, keypoints) -> np.ndarray:
     return per_figure[key]
 
 
-def _rows_of(a: np.ndarray, idx: np.ndarray) -> np.ndarray:
-    """``a[idx]``, as a view when ``idx`` is a long run of consecutive indices."""
-    idx = np.asarray(idx)
-    n = len(idx)
-    if n > 32 and idx[-1] - idx[0] == n - 1 and bool((np.diff(idx) == 1).all()):
-        return a[idx[0] : idx[-1] + 1]
-    return a[idx]

@@ -34,7 +34,7 @@ import numpy as np
 
 from .base import RowBlock, RowKind, State
 
-__all__ = ["ContactVelocity", "ContactHeight"]
+__all__ = ["ContactHeight", "ContactVelocity"]
 
 
 def _unit(normal) -> np.ndarray:
@@ -97,9 +97,9 @@ class ContactVelocity(RowKind):
             J0 = -np.matmul(Bt, state.jacobians[s0][:, self.keypoints]) * w  # (N, M, d, nv)
             J1 = np.matmul(Bt, state.jacobians[s1][:, self.keypoints]) * w
             J = np.stack([J0.reshape(N, d * M, -1), J1.reshape(N, d * M, -1)], axis=1)
-            if state.dpoints_dglobals is not None and len(state.proportion_cols):
-                dP = state.dpoints_dglobals[s1][:, self.keypoints] - state.dpoints_dglobals[s0][:, self.keypoints]
-                Jg, gcols = (np.matmul(Bt, dP) * w).reshape(N, d * M, -1), state.proportion_cols
+            if state.has_global_points:
+                dP = state.global_point_jacobians(s1, self.keypoints, Bt) - state.global_point_jacobians(s0, self.keypoints, Bt)
+                Jg, gcols = (dP * w).reshape(N, d * M, -1), state.proportion_cols
         return RowBlock(self.frames, r, J, np.arange(state.figure.nv), self.name, Jg=Jg, gcols=gcols)
 
 
@@ -141,7 +141,7 @@ class ContactHeight(RowKind):
             N, M = r.shape
             Jk = np.einsum("a,nmav->nmv", self.normal, state.jacobians[slots][:, self.keypoints])
             J = (Jk * self.sqrt_w[..., None]).reshape(N, 1, M, -1)
-            if state.dpoints_dglobals is not None and len(state.proportion_cols):
-                dP = np.einsum("a,nmag->nmg", self.normal, state.dpoints_dglobals[slots][:, self.keypoints])
+            if state.has_global_points:
+                dP = state.global_point_jacobians(slots, self.keypoints, self.normal[None])[:, :, 0]
                 Jg, gcols = dP * self.sqrt_w[..., None], state.proportion_cols
         return RowBlock(self.frames[:, None], r, J, np.arange(state.figure.nv), self.name, Jg=Jg, gcols=gcols)

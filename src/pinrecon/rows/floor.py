@@ -61,7 +61,7 @@ class FloorPenetration(RowKind):
             scale = (below * self.sqrt_w[:, None])[..., None]
             Jk = np.einsum("a,nmav->nmv", self.normal, state.jacobians[slots][:, self.keypoints]) * scale
             J = Jk.reshape(N, 1, M, -1)
-            if state.dpoints_dglobals is not None and len(state.proportion_cols):
-                dP = np.einsum("a,nmag->nmg", self.normal, state.dpoints_dglobals[slots][:, self.keypoints])
+            if state.has_global_points:
+                dP = state.global_point_jacobians(slots, self.keypoints, self.normal[None])[:, :, 0]
                 Jg, gcols = dP * scale, state.proportion_cols
         return RowBlock(self.frames[:, None], r, J, np.arange(state.figure.nv), self.name, Jg=Jg, gcols=gcols)

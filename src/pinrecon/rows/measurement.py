@@ -106,18 +106,19 @@ class Measurement2D(RowKind):
             cols = self._columns(state.figure)  # structurally non-zero columns only
             J = state.point_jacobians(slots, self.keypoints, camera.scale * camera.R[:2] if ortho else d_uv, scale, cols)
             J = J.reshape(N, 1, 2 * M, -1)
-            parts, cols = [], []
-            if state.dpoints_dglobals is not None and len(state.proportion_cols):
-                dP = state.dpoints_dglobals[slots][:, self.keypoints]  # (N, M, 3, n)
-                d = camera.scale * camera.R[:2] if ortho else d_uv
-                parts.append(np.matmul(d, dP))
-                cols.append(state.proportion_cols)
-            if self.intrinsics is not None and state.g is not None:
-                parts.append(self.intrinsics.d_uv(uv)[..., None])
-                cols.append([self.intrinsics.col])
-            if parts:
-                Jg = (np.concatenate(parts, axis=-1) * scale[..., None, None]).reshape(N, 2 * M, -1)
-                gcols = np.concatenate([np.asarray(c, dtype=int) for c in cols])
+            n_p = len(state.proportion_cols) if state.has_global_points else 0
+            focal = self.intrinsics is not None and state.g is not None
+            if n_p or focal:  # (N, M, 2, globals): the proportions' columns, then the camera's
+                Jg = np.empty((N, M, 2, n_p + focal))
+                if n_p:
+                    state.global_point_jacobians(slots, self.keypoints, camera.scale * camera.R[:2] if ortho else d_uv,
+                                                 out=Jg[..., :n_p])
+                if focal:
+                    Jg[..., n_p] = self.intrinsics.d_uv(uv)
+                Jg *= scale[..., None, None]
+                Jg = Jg.reshape(N, 2 * M, -1)
+                gcols = np.r_[np.asarray(state.proportion_cols, dtype=int)[:n_p], [self.intrinsics.col] if focal else []]
+                gcols = gcols.astype(int)
         cols = self._columns(state.figure) if jacobian else np.arange(state.figure.nv)
         return RowBlock(self.frames[:, None], r, J, cols, self.name, cost_value=cost, Jg=Jg, gcols=gcols)
 

@@ -53,8 +53,8 @@ class Points3D(RowKind):
         if jacobian:
             cols = supported_columns(state.figure, self.keypoints)  # structurally non-zero columns only
             J = state.point_jacobians(slots, self.keypoints, None, self.sqrt_w, cols).reshape(N, 1, 3 * M, -1)
-            if state.dpoints_dglobals is not None and len(state.proportion_cols):
-                dP = state.dpoints_dglobals[slots][:, self.keypoints] * self.sqrt_w[..., None, None]
+            if state.has_global_points:
+                dP = state.global_point_jacobians(slots, self.keypoints) * self.sqrt_w[..., None, None]
                 Jg, gcols = dP.reshape(N, 3 * M, -1), state.proportion_cols
         cols = cols if jacobian else np.arange(state.figure.nv)
         return RowBlock(self.frames[:, None], r, J, cols, self.name, Jg=Jg, gcols=gcols)

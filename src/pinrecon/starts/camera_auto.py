@@ -53,18 +53,18 @@ from ..errors import InputError
 __all__ = [
     "DEFAULT_FOV_DEG",
     "AutoCamera",
-    "auto_camera",
-    "image_size_of",
-    "camera_from_keyframes",
-    "orthographic_from_keyframes",
-    "camera_scale_from_keyframes",
-    "keyframe_correspondences",
-    "FocalReport",
     "FocalLengthWarning",
+    "FocalReport",
+    "auto_camera",
+    "camera_from_keyframes",
+    "camera_scale_from_keyframes",
+    "check_focal",
     "focal_profile",
+    "image_size_of",
+    "keyframe_correspondences",
+    "orthographic_from_keyframes",
     "profile_interval",
     "stretch_depth",
-    "check_focal",
 ]
 
 #: default horizontal field of view of the auto perspective camera, degrees
