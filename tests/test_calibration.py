@@ -123,6 +123,7 @@ def test_default_calibration_rules(coco_walk):
     assert default_calibrate(human, kf) == "lengths"
     assert default_calibrate(human, [kf[0]]) == "lengths"
     assert default_calibrate(human, None) == "none"  # no 3D information: lengths would not be observable
+    assert default_calibrate(human, None, lengths_from_tracks=True) == "lengths"  # unless measured from the tracks
     joints_only = [pr.Keyframe(0, 0.1, joints={"left_knee_Z": 0.3})]
     assert default_calibrate(human, joints_only) == "none"
     bfig, _, _ = bundled_motion("walk")
@@ -186,3 +187,28 @@ def test_cli_rejects_an_unknown_calibration(capsys):
         main(["reconstruct", "--figure", "human", "--tracks", "t.json", "--camera", "c.json", "--out", "o.npz",
               "--calibrate", "everything"])
     assert "invalid choice" in capsys.readouterr().err
+
+
+def test_without_keyframes_the_limb_lengths_start_at_what_the_tracks_measure(coco_walk):
+    """One perspective camera, no 3D keyframe, the generic human whose forearm is half
+    again the subject's: the limb lengths measured from the tracks (``lengths_from_tracks``,
+    the default for the generic human with one given camera) are the subject's, the
+    truth taken from the clip's own joints (distances between its points)."""
+    cam, tracks, P, _ = coco_walk
+    names = list(tracks.names)
+    pairs = {"thigh": ("hip", "knee"), "shank": ("knee", "ankle"), "upper_arm": ("shoulder", "elbow"),
+             "forearm": ("elbow", "wrist")}
+    truth = {g: float(np.mean([np.linalg.norm(P[:, names.index(f"{s}_{a}")] - P[:, names.index(f"{s}_{b}")], axis=-1).mean()
+                               for s in ("left", "right")])) for g, (a, b) in pairs.items()}
+    human = pr.Figure.human()
+    res = pr.reconstruct(human, tracks, cam)
+    cal = res.calibration
+    assert cal["mode"] == "lengths"
+    measured, fitted, generic = cal["lengths_from_tracks"], cal["lengths_m"], cal["generic_lengths_m"]
+    assert set(measured) == set(pairs)
+    for g, true in truth.items():
+        assert abs(measured[g] / true - 1.0) <= 0.08, (g, measured[g], true)
+        assert abs(fitted[g] / true - 1.0) <= 0.10, (g, fitted[g], true)
+    assert generic["forearm"] / truth["forearm"] > 1.4  # what the generic figure would have kept
+    off = pr.reconstruct(human, tracks, cam, lengths_from_tracks=False)
+    assert off.calibration == {} and "lengths_from_tracks" not in off.calibration

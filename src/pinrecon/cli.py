@@ -387,7 +387,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--calibrate", choices=["none", "lengths", "camera", "lengths+camera"],
         help="unknowns besides the motion: the figure's segment lengths (scale factors, 10 %% prior), the camera's "
         "focal length (or orthographic scale), or both (default: lengths for --figure human with 3D point "
-        "keyframes, else none; plus camera with --camera auto)",
+        "keyframes or one given camera, the limb lengths then measured from the tracks first; else none; "
+        "plus camera with --camera auto)",
     )
     r.add_argument("--save-figure", metavar="FILE.urdf",
                    help="write the (calibrated) figure's URDF there and its keypoint map next to it "

@@ -66,20 +66,24 @@ def check_calibrate(calibrate) -> str:
     return mode
 
 
-def default_calibrate(figure, keyframes=None) -> str:
+def default_calibrate(figure, keyframes=None, lengths_from_tracks: bool = False) -> str:
     """The default of ``calibrate``: ``"lengths"`` for the generic human
     (:meth:`Figure.human <pinrecon.figure.Figure.human>` marks it with
     ``meta["generic"] == "human"``; a figure already calibrated carries
-    ``meta["proportions"]``) when there is 3D information, a point keyframe; ``"none"``
-    otherwise, and for any other figure (a BVH's own skeleton, a robot, a calibrated
-    figure saved for reuse). Why: from one view a segment's length trades off against
-    its depth, and without any 3D point the prior does not hold it against hundreds of
-    frames (measured in ``docs/globals.md``, section 5).
+    ``meta["proportions"]``) when there is 3D information, a point keyframe, or when the
+    limb lengths are measured from the tracks first (``lengths_from_tracks``: one given
+    camera, one batch solve, see :func:`pinrecon.reconstruct`); ``"none"`` otherwise, and
+    for any other figure (a BVH's own skeleton, a robot, a calibrated figure saved for
+    reuse). Why: from one view a segment's length trades off against its depth, and
+    without any 3D point or measured start the prior around the generic proportions does
+    not hold it against hundreds of frames (measured in ``docs/globals.md``, section 5).
     """
     meta = getattr(figure, "meta", None) or {}
     if meta.get("generic") != "human" or "proportions" in meta:
         return "none"
-    return "lengths" if any(getattr(k, "points", None) for k in keyframes or ()) else "none"
+    if any(getattr(k, "points", None) for k in keyframes or ()):
+        return "lengths"
+    return "lengths" if lengths_from_tracks else "none"
 
 
 @dataclass(frozen=True)

@@ -354,6 +354,34 @@ class Proportions:
         theta = self.check(log_factors)
         return {n: float(np.exp(t)) for n, t in zip(self.names, theta)}
 
+    def pair_groups(self, pairs, tol: float = 0.05) -> np.ndarray:
+        """For keypoint index pairs ``pairs`` (P, 2): the group whose factor alone scales
+        the pair's distance (``d log |p_a - p_b| / d theta`` is 1 for it and 0 for the
+        others, within ``tol``, and the distance is the same in the neutral pose and in a
+        bent one: a rigid segment, e.g. hip-knee for the thigh), else -1. Measured at the
+        figure as given, by central differences of :meth:`keypoints`."""
+        pairs = np.asarray(pairs, dtype=int).reshape(-1, 2)
+        fig = self.figure
+        q0 = fig.neutral()
+        lo, hi = fig.lower_v, fig.upper_v
+        v = np.where(np.isfinite(lo) & np.isfinite(hi), 0.3 * (hi - lo), 0.5)
+        rng = np.random.default_rng(0)
+        q1 = fig.clamp(fig.integrate(q0, v * rng.uniform(-1.0, 1.0, fig.nv)))
+        Q = np.stack([q0, q1])
+        def dist(theta):
+            P = self.keypoints(theta, Q)
+            return np.linalg.norm(P[:, pairs[:, 0]] - P[:, pairs[:, 1]], axis=-1)  # (2, P)
+        d0 = dist(np.zeros(self.n))
+        eps = 1e-4
+        D = np.stack([(np.log(dist(eps * e)[0]) - np.log(dist(-eps * e)[0])) / (2 * eps) for e in np.eye(self.n)], axis=1)
+        out = np.full(len(pairs), -1)
+        for i in range(len(pairs)):
+            g = int(np.argmax(D[i])) if self.n else -1
+            rigid = d0[0, i] > 0 and abs(d0[1, i] - d0[0, i]) <= 1e-6 * d0[0, i]
+            if g >= 0 and rigid and abs(D[i, g] - 1.0) <= tol and np.sum(np.abs(np.delete(D[i], g))) <= tol:
+                out[i] = g
+        return out
+
     def members(self, group: str) -> list[str]:
         if group not in self.names:
             raise UnknownNameError("group", [group], self.names, field="group")

@@ -79,7 +79,7 @@ def _start_name(init, seed):
     return init
 
 
-def _camera_and_mode(figure, tracks, camera, keyframes, calibrate, image_size=None):
+def _camera_and_mode(figure, tracks, camera, keyframes, calibrate, image_size=None, lengths_from_tracks=False):
     """The camera(s) to build the problem with and the calibration mode.
 
     ``camera="auto"`` (or an :class:`~pinrecon.starts.camera_auto.AutoCamera`): the
@@ -89,8 +89,9 @@ def _camera_and_mode(figure, tracks, camera, keyframes, calibrate, image_size=No
     (:func:`~pinrecon.starts.camera_auto.camera_scale_from_keyframes`). Returns
     ``(camera, mode, auto)`` with ``auto`` a description of the auto camera or ``None``.
     """
-    mode = default_calibrate(figure, keyframes) if calibrate is None else calibrate
     auto = AutoCamera.parse(camera, image_size=image_size) if isinstance(camera, (str, AutoCamera)) else None
+    one_view = auto is None and not isinstance(tracks, (list, tuple))
+    mode = default_calibrate(figure, keyframes, lengths_from_tracks and one_view) if calibrate is None else calibrate
     if isinstance(camera, str) and auto is None:
         raise InputError(f"a camera, a list of cameras or 'auto', got {camera!r}", field="camera")
     if auto is not None:
@@ -163,6 +164,7 @@ def reconstruct(
     calibrate: str | None = None,
     image_size=None,
     window: int | None = None,
+    lengths_from_tracks: bool = True,
 ) -> Result:
     """Reconstruct the figure's motion from 2D tracks seen by ``camera`` (or cameras).
 
@@ -214,10 +216,16 @@ def reconstruct(
         ``"lengths+camera"``: unknowns of the same batch solve, see
         :func:`pinrecon.problem.make_problem` and ``docs/globals.md``. Default
         (``None``): ``"lengths"`` for the generic ``Figure.human()`` with 3D point
-        keyframes, ``"none"`` without them and for any other figure
-        (:func:`pinrecon.problem.default_calibrate`); with the auto camera, plus
+        keyframes or, without them, one given camera (the lengths then start at what the
+        tracks measure, ``lengths_from_tracks``); ``"none"`` otherwise and for any other
+        figure (:func:`pinrecon.problem.default_calibrate`); with the auto camera, plus
         ``"camera"``.
     image_size : (W, H) pixels, for ``camera="auto"`` when the tracks carry no image size.
+    lengths_from_tracks : when the lengths are calibrated from one camera with no 3D
+        keyframe (nothing else gives the proportions), start them, and centre their prior,
+        at the limb segments' lengths measured from the tracks (:func:`_lengths_from_tracks`);
+        the start is then run again on the figure with those lengths. ``result.calibration
+        ["lengths_from_tracks"]`` says what was measured.
     window : solve in overlapping windows of this many frames, in bounded memory
         (:mod:`pinrecon.windowed`); default: windows of 2000 frames past 10000 frames
         (without ``floor``/``contact``), ``0``: one batch solve whatever the length.
@@ -230,15 +238,25 @@ def reconstruct(
     ``result.cameras`` the fitted cameras and ``result.calibration`` the factors, the
     fitted lengths and focal lengths.
     """
-    camera, mode, auto = _camera_and_mode(figure, tracks, camera, keyframes, calibrate, image_size)
+    camera, mode, auto = _camera_and_mode(figure, tracks, camera, keyframes, calibrate, image_size,
+                                          lengths_from_tracks=bool(lengths_from_tracks))
     problem = make_problem(figure, tracks, camera, keyframes, fps_out=fps_out, weights=weights, keypoints=keypoints,
                            calibrate=mode)
     span = windowed_length(problem.n_frames, window if window is not None or floor is None and contact is None else 0)
+    if span and calibrate is None and auto is None and mode == "lengths" and default_calibrate(figure, keyframes) == "none":
+        # windows measure no lengths: the default without 3D information stays the figure's own
+        mode = default_calibrate(figure, keyframes)
+        problem = make_problem(figure, tracks, camera, keyframes, fps_out=fps_out, weights=weights,
+                               keypoints=keypoints, calibrate=mode)
     if span:  # a long clip: windows in bounded memory (the fault stage runs in each)
         if floor is not None or contact is not None:
             raise InputError("the feet stage (floor, contact) needs one batch solve: pass window=0", field="window")
         return _package(problem, solve_windowed(problem, _start_name(init, seed), options, callback, window=span), auto)
     q0 = initial_trajectory(problem, _start_name(init, seed))
+    if lengths_from_tracks and auto is None and (init is None or isinstance(init, str)):
+        problem, q0 = _lengths_from_tracks(problem, q0, _start_name(init, seed), dict(
+            figure=figure, tracks=tracks, camera=camera, keyframes=keyframes, fps_out=fps_out, weights=weights,
+            keypoints=keypoints))
     res = solve(problem, q0, options, callback, active=problem.active, g0=problem.g0)
     res = fault_stage(problem, res, options, callback)  # left/right swaps repaired (warm re-solve), outliers
     auto = check_focal(problem, res, auto, options=options)  # how well the tracks fix an auto camera's focal
@@ -270,6 +288,60 @@ def reconstruct_markers(
     q0 = initial_trajectory(problem, "markers" if init is None else init)
     res = solve(problem, q0, options, callback)
     return _package(problem, res)
+
+
+#: the prior on the proportions no tracked limb measures, as a fraction of
+#: ``Weights.sigma_proportions``, when the lengths are measured from the tracks: one view
+#: does not tell a shoulder's width from the trunk's twist (left free, it drifted by tens
+#: of per cent), so they keep the figure's own
+HELD_SIGMA = 0.1
+
+
+def _lengths_from_tracks(problem: ReconstructionProblem, q0: np.ndarray, start: str, inputs: dict):
+    """With proportions as unknowns, one camera and no 3D keyframe, the limb segments'
+    lengths measured from the tracks at ``q0``'s depths (:func:`pinrecon.starts.limbs.
+    measured_lengths`: the thighs, shanks, upper arms and forearms of the human, each a
+    pair of tracked keypoints one group alone scales, :meth:`Proportions.pair_groups`)
+    become the factors' start and the centre of their prior; the start is run again on
+    the figure with those lengths (its geometry uses the figure's own lengths). Returns
+    ``(problem, q0)``, unchanged when nothing applies. Without it the prior holds the
+    generic figure's proportions, which one view cannot correct (a forearm 50 % too long
+    stays too long and pushes its error into the joint angles)."""
+    from .starts.limbs import limb_chains, measured_lengths
+
+    props = problem.proportions
+    if props is None or len(problem.views) != 1 or problem.keyframes is not None and len(problem.keyframes):
+        return problem, q0
+    names = list(problem.tracks.names)
+    pairs = [(c.kp[i], c.kp[i + 1]) for chains in limb_chains(problem.figure, names) for c in chains
+             for i in range(len(c.kp) - 1)]
+    if not pairs:
+        return problem, q0
+    groups = props.pair_groups(pairs)
+    L = measured_lengths(problem, q0, pairs)
+    Q0 = problem.keypoints(problem.figure.neutral()[None])[0]  # lengths at g0
+    theta = np.array(problem.g0[: props.n], float)
+    held = np.ones(props.n, bool)  # groups no tracked limb measures keep the figure's proportions
+    measured = {}
+    for g in sorted(set(int(x) for x in groups if x >= 0)):
+        sel = [i for i, x in enumerate(groups) if x == g and np.isfinite(L[i]) and L[i] > 0]
+        if not sel:
+            continue
+        model = np.array([np.linalg.norm(Q0[pairs[i][0]] - Q0[pairs[i][1]]) for i in sel])
+        ratio = float(np.exp(np.mean(np.log(L[sel] / model))))
+        theta[g] += float(np.log(np.clip(ratio, 0.5, 2.0)))
+        measured[props.names[g]] = float(np.mean(L[sel]))
+        held[g] = False
+    if not measured:
+        return problem, q0
+    sigma = problem.weights.sigma_proportions
+    new = make_problem(**inputs, calibrate=problem.calibrate, log_factors0=theta,
+                       sigma_proportions=np.where(held, HELD_SIGMA * sigma, sigma))
+    motion = make_problem(**{**inputs, "figure": props.calibrated_figure(theta)}, calibrate="none")
+    q0 = initial_trajectory(motion, start)
+    new.reports.update(getattr(motion, "reports", {}))
+    new.measured_lengths = measured
+    return new, q0
 
 
 def _package(problem: ReconstructionProblem, res: SolveResult, auto: dict | None = None) -> Result:
@@ -307,7 +379,9 @@ def _package(problem: ReconstructionProblem, res: SolveResult, auto: dict | None
         figure, Q, np.arange(T) / problem.fps, problem.fps, P, err, res, observed,
         cameras=problem.cameras_at(g), camera_names=problem.camera_names,
         reprojection_error_px_per_camera=per_camera if views else None,
-        calibration={**problem.calibration(g), **({"camera_auto": auto} if auto else {})},
+        calibration={**problem.calibration(g), **({"camera_auto": auto} if auto else {}),
+                     **({"lengths_from_tracks": problem.measured_lengths} if getattr(problem, "measured_lengths", None)
+                        else {})},
     )
     for report in getattr(problem, "reports", {}).values():  # the hypotheses start, the fault stage
         result.extras.update(report.to_extras())

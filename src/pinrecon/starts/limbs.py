@@ -23,6 +23,7 @@ __all__ = [
     "camera_rays",
     "clean_tracks",
     "limb_chains",
+    "measured_lengths",
     "ray_point_at_depth",
     "sphere_ray",
     "torso_flip",
@@ -192,6 +193,30 @@ def clean_tracks(problem, Q_base) -> np.ndarray:
                 y = np.convolve(np.pad(y, w // 2, mode="edge"), kern, mode="valid")
             uv[:, k, c] = y
     return uv
+
+
+def measured_lengths(problem, Q, pairs, percentile: float = 95.0) -> np.ndarray:
+    """(P,) the 3D lengths of keypoint pairs (P, 2) measured from the tracks: each frame,
+    the second point's image position (cleaned tracks, :func:`clean_tracks`) is put on its
+    ray at the first point's depth in ``Q`` (the figure at ``problem.g0``); a segment that
+    swings through the image plane shows its full length there, so the ``percentile`` of
+    those distances is its length (an underestimate for a segment that never crosses).
+    NaN for a pair whose points are not both tracked in at least a tenth of the frames."""
+    pairs = np.asarray(pairs, dtype=int).reshape(-1, 2)
+    meas, cam = problem.measurement, problem.camera
+    uv = clean_tracks(problem, Q)
+    z = cam.depth(problem.keypoints(Q))
+    seen = np.zeros(problem.figure.K)
+    if meas is not None and len(meas.frames):
+        seen[np.asarray(meas.keypoints)] = meas.observed.mean(axis=0)
+    out = np.full(len(pairs), np.nan)
+    for i, (a, b) in enumerate(pairs):
+        if min(seen[a], seen[b]) < 0.1:
+            continue
+        pa = ray_point_at_depth(cam, uv[:, a], z[:, a])
+        pb = ray_point_at_depth(cam, uv[:, b], z[:, a])
+        out[i] = float(np.percentile(np.linalg.norm(pb - pa, axis=-1), percentile))
+    return out
 
 
 def trunk_keypoints(figure, names, passes) -> list[str]:
