@@ -189,7 +189,7 @@ def test_cli_rejects_an_unknown_calibration(capsys):
     assert "invalid choice" in capsys.readouterr().err
 
 
-def test_without_keyframes_the_limb_lengths_start_at_what_the_tracks_measure(coco_walk):
+def test_without_keyframes_the_limb_lengths_start_at_what_the_tracks_measure(coco_walk, tmp_path):
     """One perspective camera, no 3D keyframe, the generic human whose forearm is half
     again the subject's: the limb lengths measured from the tracks (``lengths_from_tracks``,
     the default for the generic human with one given camera) are the subject's, the
@@ -210,5 +210,8 @@ def test_without_keyframes_the_limb_lengths_start_at_what_the_tracks_measure(coc
         assert abs(measured[g] / true - 1.0) <= 0.08, (g, measured[g], true)
         assert abs(fitted[g] / true - 1.0) <= 0.10, (g, fitted[g], true)
     assert generic["forearm"] / truth["forearm"] > 1.4  # what the generic figure would have kept
+    assert f"forearm {measured['forearm']:.3f} m" in res.summary()  # the summary says what was measured
+    res.save(tmp_path / "r.npz")
+    assert pr.load_result(tmp_path / "r.npz").calibration["lengths_from_tracks"] == pytest.approx(measured)
     off = pr.reconstruct(human, tracks, cam, lengths_from_tracks=False)
     assert off.calibration == {} and "lengths_from_tracks" not in off.calibration

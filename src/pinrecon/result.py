@@ -169,6 +169,10 @@ class Result:
             items = [f"{g} {generic.get(g, float('nan')):.3f} -> {m:.3f} m ({100 * (m / generic[g] - 1):+.1f} %)"
                      if generic.get(g) else f"{g} {m:.3f} m" for g, m in fitted.items()]
             lines += [f"    {'; '.join(items[i:i + 3])}" for i in range(0, len(items), 3)]
+        measured = c.get("lengths_from_tracks") or {}
+        if measured:  # no 3D keyframe: the fit started at what the tracks measure (reconstruct's lengths_from_tracks)
+            lines.append("  measured from the tracks (the fit's start; other groups held at the figure's): "
+                         + "; ".join(f"{g} {m:.3f} m" for g, m in measured.items()))
         for name, cam in (c.get("cameras") or {}).items():
             what, unit = ("focal length", "px") if cam.get("quantity") == "focal_px" else ("scale", "px/m")
             lines.append(f"  camera {name!r}: {what} {cam['start']:.1f} -> {cam['fitted']:.1f} {unit}")
