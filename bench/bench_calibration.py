@@ -137,6 +137,9 @@ def main():
     ap.add_argument("--clips", nargs="*", default=list(CLIPS), choices=list(CLIPS))
     ap.add_argument("--seed", type=int, default=0)
     args = ap.parse_args()
+    from provenance import provenance
+
+    print(provenance())
     warnings.simplefilter("ignore")
     cases = [
         ("none", "every", "none", 1.0),

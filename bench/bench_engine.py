@@ -486,6 +486,9 @@ def main():
         return
     import platform
 
+    from provenance import provenance
+
+    print(provenance())
     print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}, OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS')}")
     if not args.skip_speed:
         speed_table(args.frames)

@@ -187,6 +187,9 @@ def main(argv=None):
     a = ap.parse_args(argv)
     if a.quick:
         a.clips, a.angles, a.frames = ["walk"], [45.0], a.frames or 150
+    from provenance import provenance
+
+    print(provenance())
     mode = calibration_mode()
     if a.uncalibrated and mode:
         mode = "none"
