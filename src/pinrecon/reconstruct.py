@@ -16,20 +16,33 @@ smoothing and gap filling of motion capture).
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from .contact import solve_on_the_floor
-from .faults import fault_stage
 from .errors import InputError
-from .problem import ReconstructionProblem, Weights, default_calibrate, make_marker_problem, make_problem
+from .faults import fault_stage
+from .problem import (
+    ReconstructionProblem,
+    Weights,
+    default_calibrate,
+    make_marker_problem,
+    make_problem,
+)
 from .result import Result, load_result
 from .rows import Measurement2D
 from .solver import SolveResult, SolverOptions, solve
 from .starts import available_starts, get_start, initial_trajectory
-from .starts.camera_auto import AutoCamera, auto_camera, camera_scale_from_keyframes, check_focal, image_size_of
+from .starts.camera_auto import (
+    AutoCamera,
+    auto_camera,
+    camera_scale_from_keyframes,
+    check_focal,
+    image_size_of,
+)
 from .tracks import Keyframe, Keyframes, Markers, Tracks
 from .windowed import solve_windowed, windowed_length
 
@@ -254,9 +267,9 @@ def reconstruct(
         return _package(problem, solve_windowed(problem, _start_name(init, seed), options, callback, window=span), auto)
     q0 = initial_trajectory(problem, _start_name(init, seed))
     if lengths_from_tracks and auto is None and (init is None or isinstance(init, str)):
-        problem, q0 = _lengths_from_tracks(problem, q0, _start_name(init, seed), dict(
-            figure=figure, tracks=tracks, camera=camera, keyframes=keyframes, fps_out=fps_out, weights=weights,
-            keypoints=keypoints))
+        inputs = {"figure": figure, "tracks": tracks, "camera": camera, "keyframes": keyframes, "fps_out": fps_out,
+                  "weights": weights, "keypoints": keypoints}
+        problem, q0 = _lengths_from_tracks(problem, q0, _start_name(init, seed), inputs)
     res = solve(problem, q0, options, callback, active=problem.active, g0=problem.g0)
     res = fault_stage(problem, res, options, callback)  # left/right swaps repaired (warm re-solve), outliers
     auto = check_focal(problem, res, auto, options=options)  # how well the tracks fix an auto camera's focal
@@ -323,14 +336,19 @@ def _lengths_from_tracks(problem: ReconstructionProblem, q0: np.ndarray, start: 
     theta = np.array(problem.g0[: props.n], float)
     held = np.ones(props.n, bool)  # groups no tracked limb measures keep the figure's proportions
     measured = {}
-    for g in sorted(set(int(x) for x in groups if x >= 0)):
+    for g in sorted({int(x) for x in groups if x >= 0}):
         sel = [i for i, x in enumerate(groups) if x == g and np.isfinite(L[i]) and L[i] > 0]
         if not sel:
             continue
         model = np.array([np.linalg.norm(Q0[pairs[i][0]] - Q0[pairs[i][1]]) for i in sel])
         ratio = float(np.exp(np.mean(np.log(L[sel] / model))))
-        theta[g] += float(np.log(np.clip(ratio, 0.5, 2.0)))
-        measured[props.names[g]] = float(np.mean(L[sel]))
+        if not 0.5 <= ratio <= 2.0:  # a camera or tracks far from the figure: say so, use the bound
+            warnings.warn(f"the tracks measure the {props.names[g]} at {ratio:.2f} times the figure's; "
+                          f"starting it at {float(np.clip(ratio, 0.5, 2.0)):.1f} times (check the camera and the "
+                          "keypoint names)", stacklevel=3)
+            ratio = float(np.clip(ratio, 0.5, 2.0))
+        theta[g] += float(np.log(ratio))
+        measured[props.names[g]] = float(np.mean(model) * ratio)
         held[g] = False
     if not measured:
         return problem, q0
