@@ -6,8 +6,8 @@ run through a 2D detector (the 12 COCO-17 body points with 2 px noise, 2 % of th
 points thrown 20-80 px away at low confidence, 1 % of the frames with left and right
 swapped, 3 % missing: :func:`pinrecon.synthetic.detector_faults`), reconstructed with the
 generic ``Figure.human()`` and no keyframe at all: the default path (the multi-hypothesis
-start, the robust loss, swap repair; lengths are not calibrated without 3D keyframes, where
-one view cannot tell a limb's length from its depth).
+start, the robust loss, swap repair; the limb lengths measured from the tracks start the
+calibration, since one view alone cannot tell a limb's length from its depth).
 
 **The lab setting** (``OUT/``): the same walk through an orthographic camera, its body
 joints with 1 px noise and 3 % missing, a few noisy 3D point keyframes (2 cm, every
