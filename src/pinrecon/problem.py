@@ -50,6 +50,7 @@ __all__ = [
     "CALIBRATE_MODES",
     "check_calibrate",
     "default_calibrate",
+    "has_point_keyframes",
 ]
 
 #: what :func:`make_problem` can calibrate: nothing, the figure's segment lengths, the
@@ -64,6 +65,12 @@ def check_calibrate(calibrate) -> str:
     if mode not in CALIBRATE_MODES:
         raise InputError(f"must be one of {', '.join(CALIBRATE_MODES)}, got {calibrate!r}", field="calibrate")
     return mode
+
+
+def has_point_keyframes(keyframes) -> bool:
+    """Whether ``keyframes`` hold a 3D point (the 3D information that fixes lengths and
+    size; joint-angle keyframes do not)."""
+    return any(getattr(k, "points", None) for k in keyframes or ())
 
 
 def default_calibrate(figure, keyframes=None, lengths_from_tracks: bool = False) -> str:
@@ -81,7 +88,7 @@ def default_calibrate(figure, keyframes=None, lengths_from_tracks: bool = False)
     meta = getattr(figure, "meta", None) or {}
     if meta.get("generic") != "human" or "proportions" in meta:
         return "none"
-    if any(getattr(k, "points", None) for k in keyframes or ()):
+    if has_point_keyframes(keyframes):
         return "lengths"
     return "lengths" if lengths_from_tracks else "none"
 

@@ -29,6 +29,7 @@ from .problem import (
     ReconstructionProblem,
     Weights,
     default_calibrate,
+    has_point_keyframes,
     make_marker_problem,
     make_problem,
 )
@@ -116,7 +117,7 @@ def _camera_and_mode(figure, tracks, camera, keyframes, calibrate, image_size=No
                              keyframes=keyframes)
         if calibrate is None:
             mode = "lengths+camera" if mode == "lengths" else "camera"
-        posed = any(getattr(k, "points", None) for k in keyframes or ())
+        posed = has_point_keyframes(keyframes)
         desc = {"projection": auto.projection, "image_size": list(image_size_of(tracks, auto.image_size)),
                 "start": camera.to_dict(),
                 "pose": "from the point keyframes" if posed else "gauge: the world is the camera's (optical centre "

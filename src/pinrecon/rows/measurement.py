@@ -104,15 +104,15 @@ class Measurement2D(RowKind):
             ortho = hasattr(camera, "scale")  # orthographic: d uv / d X is one constant 2x3 matrix
             # sqrt(w) d uv / d X  d p_k / d v, projected before forming the keypoint Jacobians
             cols = self._columns(state.figure)  # structurally non-zero columns only
-            J = state.point_jacobians(slots, self.keypoints, camera.scale * camera.R[:2] if ortho else d_uv, scale, cols)
+            A = camera.scale * camera.R[:2] if ortho else d_uv
+            J = state.point_jacobians(slots, self.keypoints, A, scale, cols)
             J = J.reshape(N, 1, 2 * M, -1)
             n_p = len(state.proportion_cols) if state.has_global_points else 0
             focal = self.intrinsics is not None and state.g is not None
             if n_p or focal:  # (N, M, 2, globals): the proportions' columns, then the camera's
                 Jg = np.empty((N, M, 2, n_p + focal))
                 if n_p:
-                    state.global_point_jacobians(slots, self.keypoints, camera.scale * camera.R[:2] if ortho else d_uv,
-                                                 out=Jg[..., :n_p])
+                    state.global_point_jacobians(slots, self.keypoints, A, out=Jg[..., :n_p])
                 if focal:
                     Jg[..., n_p] = self.intrinsics.d_uv(uv)
                 Jg *= scale[..., None, None]

@@ -65,6 +65,7 @@ from .keyframes import keyframe_start
 from .limbs import (
     camera_rays,
     clean_tracks,
+    image_lengths,
     limb_chains,
     ray_point_at_depth,
     sphere_ray,
@@ -377,9 +378,7 @@ def _limb_search(problem, Q_base, uv, passes, sub_frames, step, switch_sigma, ik
         roots, lengths = [], []
         for c in chains:
             roots.append(ray_point_at_depth(cam, uv[sub_frames, c.kp[0]], z[sub_frames, c.kp[0]]))
-            pts = ray_point_at_depth(cam, uv[:, c.kp], z[:, c.kp])
-            ends = ray_point_at_depth(cam, uv[:, c.kp[1:]], z[:, c.kp[:-1]])  # ends at their start's depth
-            d_proj = np.linalg.norm(ends - pts[:, :-1], axis=-1)  # (T, S) projected lengths, metres
+            d_proj = image_lengths(cam, uv, z, c.kp)  # (T, S) projected lengths, metres
             lengths.append(np.clip(np.percentile(d_proj, 99, axis=0), 0.6 * c.lengths_m, 1.5 * c.lengths_m))
         D = _directions(chains, roots, uv[sub_frames], cam, lengths)
         sc = _score_states(problem, chains, sub_frames, Q, D, ik_options, sigma_pull_m, _lateral_sigma_m(problem, P_cur))

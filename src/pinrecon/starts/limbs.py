@@ -22,6 +22,7 @@ __all__ = [
     "Chain",
     "camera_rays",
     "clean_tracks",
+    "image_lengths",
     "limb_chains",
     "measured_lengths",
     "ray_point_at_depth",
@@ -210,13 +211,21 @@ def measured_lengths(problem, Q, pairs, percentile: float = 95.0) -> np.ndarray:
     if meas is not None and len(meas.frames):
         seen[np.asarray(meas.keypoints)] = meas.observed.mean(axis=0)
     out = np.full(len(pairs), np.nan)
-    for i, (a, b) in enumerate(pairs):
-        if min(seen[a], seen[b]) < 0.1:
-            continue
-        pa = ray_point_at_depth(cam, uv[:, a], z[:, a])
-        pb = ray_point_at_depth(cam, uv[:, b], z[:, a])
-        out[i] = float(np.percentile(np.linalg.norm(pb - pa, axis=-1), percentile))
+    for i, pair in enumerate(pairs):
+        if seen[pair].min() >= 0.1:
+            out[i] = float(np.percentile(image_lengths(cam, uv, z, pair)[:, 0], percentile))
     return out
+
+
+def image_lengths(camera, uv, z, path) -> np.ndarray:
+    """(T, S) the lengths of the S segments of the keypoint path ``path`` (S + 1,) in
+    every frame, each segment's end put on its ray at its start's depth: image positions
+    ``uv`` (T, K, 2), camera depths ``z`` (T, K). Where a segment crosses the image plane
+    this is its true length; elsewhere its projection, shorter."""
+    path = np.asarray(path, dtype=int)
+    pts = ray_point_at_depth(camera, uv[:, path], z[:, path])
+    ends = ray_point_at_depth(camera, uv[:, path[1:]], z[:, path[:-1]])  # ends at their start's depth
+    return np.linalg.norm(ends - pts[:, :-1], axis=-1)
 
 
 def trunk_keypoints(figure, names, passes) -> list[str]:
