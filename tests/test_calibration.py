@@ -215,3 +215,8 @@ def test_without_keyframes_the_limb_lengths_start_at_what_the_tracks_measure(coc
     assert pr.load_result(tmp_path / "r.npz").calibration["lengths_from_tracks"] == pytest.approx(measured)
     off = pr.reconstruct(human, tracks, cam, lengths_from_tracks=False)
     assert off.calibration == {} and "lengths_from_tracks" not in off.calibration
+    # a joint-angle keyframe fixes no length: the default calibrates, so the lengths are measured too
+    from pinrecon.tracks import Keyframe, Keyframes
+
+    joint = Keyframes([Keyframe(0, 0.05, joints={human.model.names[2]: np.zeros(1)})])
+    assert set(pr.reconstruct(human, tracks, cam, joint).calibration["lengths_from_tracks"]) == set(pairs)

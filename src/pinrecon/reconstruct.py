@@ -324,7 +324,7 @@ def _lengths_from_tracks(problem: ReconstructionProblem, q0: np.ndarray, start: 
     from .starts.limbs import limb_chains, measured_lengths
 
     props = problem.proportions
-    if props is None or len(problem.views) != 1 or problem.keyframes is not None and len(problem.keyframes):
+    if props is None or len(problem.views) != 1 or has_point_keyframes(problem.keyframes):
         return problem, q0
     names = list(problem.tracks.names)
     pairs = [(c.kp[i], c.kp[i + 1]) for chains in limb_chains(problem.figure, names) for c in chains
