@@ -318,7 +318,7 @@ def test_contact_velocity_rows_soften_where_the_point_is_seen_to_move():
     seen = np.array([[0.00, 0.30], [0.10, 0.30], [0.30, 0.30], [0.30, 0.30]])  # m/s
     feet = FootContact(Floor((0.0, 1.0, 0.0), 0.0), names, C, np.zeros(2), np.zeros(2),
                        extra={"seen_speed_mps": seen})
-    s = ContactSettings(sigma_velocity_mps=0.02, velocity_slack=1.0, slack_from_mps=0.05)
+    s = ContactSettings(sigma_velocity_mps=0.02, velocity_slack=1.0, slack_from_mps=0.05, lift_s=0.0)
     vel = [r for r in contact_rows(fig, feet, 50.0, s) if isinstance(r, ContactVelocity)][0]
     # pairs (0,1) and (1,2); by hand: mean seen speed of the pair, 5 cm/s free, then added in quadrature
     # left (0,1): 0.05 -> sigma 0.02; left (1,2): 0.20 -> sqrt(0.02^2 + 0.15^2); right (0,1): 0.30 -> sqrt(0.02^2 + 0.25^2)
@@ -326,9 +326,20 @@ def test_contact_velocity_rows_soften_where_the_point_is_seen_to_move():
     np.testing.assert_allclose(vel.frames, [[0, 1], [1, 2]])
     np.testing.assert_allclose(vel.sqrt_w, expect, rtol=1e-12)
     # velocity_slack = 0: the uniform pin of sigma_velocity_mps
-    s0 = ContactSettings(sigma_velocity_mps=0.02, velocity_slack=0.0)
+    s0 = ContactSettings(sigma_velocity_mps=0.02, velocity_slack=0.0, lift_s=0.0)
     vel0 = [r for r in contact_rows(fig, feet, 50.0, s0) if isinstance(r, ContactVelocity)][0]
     np.testing.assert_allclose(vel0.sqrt_w, [[2500.0, 2500.0], [2500.0, 0.0]])
+    # lift_s = 20 ms (one frame at 50 fps): each detected contact's rows go on one frame after it
+    # ends (left to frame 3, right to frame 2), softened the same way: the seen speed there is 0.30
+    s1 = ContactSettings(sigma_velocity_mps=0.02, velocity_slack=1.0, slack_from_mps=0.05, lift_s=0.02)
+    vel1 = [r for r in contact_rows(fig, feet, 50.0, s1) if isinstance(r, ContactVelocity)][0]
+    np.testing.assert_allclose(vel1.frames, [[0, 1], [1, 2], [2, 3]])
+    late = 50.0 / np.hypot(0.02, 0.25)
+    np.testing.assert_allclose(vel1.sqrt_w, np.vstack([expect[:1], [expect[1, 0], late], [late, 0.0]]), rtol=1e-12)
+    # contacts given by the user are held as given (no seen speed: no lift)
+    given = FootContact(Floor((0.0, 1.0, 0.0), 0.0), names, C, np.zeros(2), np.zeros(2))
+    vel2 = [r for r in contact_rows(fig, given, 50.0, s1) if isinstance(r, ContactVelocity)][0]
+    np.testing.assert_allclose(vel2.frames, [[0, 1], [1, 2]])
 
 
 def test_contact_detection_trim_shortens_each_contact_at_both_ends():

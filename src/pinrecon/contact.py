@@ -37,23 +37,9 @@ from .rows.points3d import Points3D
 from .solver import solve
 
 __all__ = [
-    "Floor",
-    "ContactSettings",
-    "FootContact",
-    "foot_keypoints",
-    "sole_offset",
-    "body_up",
-    "estimate_floor",
-    "detect_contacts",
-    "foot_speeds",
-    "contact_heights",
-    "contact_rows",
-    "hold_rows",
-    "ground_contacts",
-    "solve_on_the_floor",
-    "foot_metrics",
-    "contacts_from_spec",
-    "FOOT_EXTRAS",
+    "FOOT_EXTRAS", "ContactSettings", "Floor", "FootContact", "body_up", "contact_heights", "contact_rows",
+    "contacts_from_spec", "detect_contacts", "estimate_floor", "foot_keypoints", "foot_metrics", "foot_speeds",
+    "ground_contacts", "hold_rows", "sole_offset", "solve_on_the_floor",
 ]
 
 #: a keypoint whose name contains one of these (case-insensitive) is a foot point
@@ -192,11 +178,11 @@ class ContactSettings:
         barrier acts.
     trim_s : each detected contact is shortened by this at both ends (not at the clip's
         ends); 0 by default (trimming 20 ms cost the run its short stances).
-    hold_m : the tracked points off the feet are held where the first solve put them
-        (:func:`hold_rows`, metres; 0: not held). Unheld, contact rows on a foot whose
-        depth one camera does not see moved the whole figure to another depth (generic
-        walk 83.8 -> 112.3 mm, lab run 39.5 -> 53.3 mm); held by 10 cm the error is lower
-        than without rows in all of ``bench/bench_contact.py`` (3 cm: lab run 10.8 cm/s).
+    lift_s : detected contacts' no-sliding rows go on this long after each (toe-off: the
+        heel rises while the forefoot holds; generic walk 3.75 -> 1.92 cm/s).
+    hold_m : tracked points off the feet held where the first solve put them (metres,
+        :func:`hold_rows`; 0: not). Unheld, the rows moved the figure's depth (generic walk
+        83.8 -> 112.3 mm); held, the error is lower than without rows in bench_contact.
     ankle_height_m : when the foot points have no toe or heel (COCO-17's ankles), the
         estimated floor is put this far below the planted ankles (an adult's ankle joint
         centre stands 6-9 cm above the floor), so that the feet stand on it.
@@ -220,6 +206,7 @@ class ContactSettings:
     velocity_slack: float = 1.0
     slack_from_mps: float = 0.05
     hold_m: float = 0.1
+    lift_s: float = 0.035
 
     def __post_init__(self):
         for f in fields(self):
@@ -533,7 +520,7 @@ def contact_rows(figure, feet: FootContact, fps: float, settings: ContactSetting
     On a grid super-sampled ``factor`` times, each frame's rows weigh ``1 / factor`` (the
     contact rows keep the weight of one observed frame). With ``feet.extra["seen_speed_mps"]``
     the zero-velocity rows are softened where the point is seen to move
-    (``ContactSettings.velocity_slack``)."""
+    (``ContactSettings.velocity_slack``) and go on ``lift_s`` after each contact."""
     s = settings or ContactSettings()
     idx = figure.keypoint_index(feet.names)
     T = feet.contact.shape[0]
@@ -550,7 +537,8 @@ def contact_rows(figure, feet: FootContact, fps: float, settings: ContactSetting
             v = 0.5 * (v + np.vstack([v[1:], v[-1:]]))  # the pair (t, t + 1)
             v = np.maximum(0.0, v - s.slack_from_mps)
             wv = w * s.sigma_velocity_mps**2 / (s.sigma_velocity_mps**2 + (s.velocity_slack * v) ** 2)
-        rows.insert(0, ContactVelocity(idx, feet.contact, fps, s.sigma_velocity_mps, wv, normal=fl.n))
+        rows.insert(0, ContactVelocity(idx, _lifting(feet.contact, round(s.lift_s * fps)) if seen is not None
+                                       else feet.contact, fps, s.sigma_velocity_mps, wv, normal=fl.n))
     return rows
 
 
@@ -576,6 +564,14 @@ def _observed_names(problem) -> list[str] | None:
         return list(dict.fromkeys(n for v in views for n in v.tracks.names))
     src = next((x for x in (getattr(problem, "tracks", None), getattr(problem, "markers", None)) if x is not None), None)
     return None if src is None else list(src.names)
+
+
+def _lifting(C, n: int):
+    """Contacts ``C`` (T, F) each extended by ``n`` frames after its end."""
+    out = np.array(C, bool)
+    for _ in range(int(n)):
+        out[1:] |= out[:-1].copy()
+    return out
 
 
 def _foot_names(problem) -> list[str]:
