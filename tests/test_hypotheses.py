@@ -14,7 +14,7 @@ from pinrecon.metrics import flip_rate, pa_mpjpe
 from pinrecon.problem import make_problem
 from pinrecon.solver import solve
 from pinrecon.starts import initial_trajectory, sparse_keyframes
-from pinrecon.starts.hypotheses import min_sum_path, search_hypotheses, span_gaps
+from pinrecon.starts.hypotheses import min_sum_path, search_hypotheses, span_gaps, splice_path
 from pinrecon.starts.limbs import (
     camera_rays,
     clean_tracks,
@@ -203,3 +203,25 @@ def test_search_keeps_a_right_base(walk_problem):
     direct = solve(problem, fig.clamp(Q, 1e-3), SolverOptions(max_iterations=40, ftol=1e-4), active=problem.active).x
     f_direct = flip_rate(fig.keypoints(direct)[:, idx], P, cam, segs)
     assert flip_rate(fig.keypoints(Q0)[:, idx], P, cam, segs) <= f_direct + 0.02 < 0.12
+
+
+def test_splice_path_is_the_brute_force_minimum():
+    """The trunk splice's path against every 0/1 path of a short clip, scored by hand."""
+    rng = np.random.default_rng(4)
+    T, K, sigma = 7, 3, 0.05
+    ca, cb = rng.uniform(0, 10, T), rng.uniform(0, 10, T)
+    Pa = rng.normal(size=(T, K, 3))
+    Pb = Pa + rng.normal(0, 0.03, (T, K, 3)) * rng.uniform(0, 3, (T, 1, 1))
+
+    def total(path):
+        c = sum(cb[t] if h else ca[t] for t, h in enumerate(path))
+        for t in range(T - 1):
+            if path[t] != path[t + 1]:
+                jt = [0.5 * np.sum((Pa[u] - Pb[u]) ** 2) / sigma**2 for u in (t, t + 1)]
+                c += 0.5 * (jt[0] + jt[1])
+        return c
+
+    best = min(itertools.product((0, 1), repeat=T), key=total)
+    path = splice_path(ca, cb, Pa, Pb, sigma)
+    assert total(path) == pytest.approx(total(best))
+    assert 0 < path.sum() < T  # this draw switches (the test covers a real splice)

@@ -9,7 +9,7 @@ import re
 
 import numpy as np
 import pytest
-from workbench_case import FLIP_FRAME, GAP, SEGMENT, all_flips, flipped_frames, make_case
+from workbench_case import FLIP_FRAME, GAP, SEGMENT, WEIGHTS, all_flips, flipped_frames, make_case
 
 import pinrecon as pr
 from pinrecon.cli import main
@@ -27,14 +27,14 @@ def start(case):
     """The batch solve of the case (what `pinrecon reconstruct` gives): the right shank
     is flipped inside the marker drop-out."""
     fig, Q, cam, tracks, keys = case
-    return pr.reconstruct(fig, tracks, cam, keys)
+    return pr.reconstruct(fig, tracks, cam, keys, weights=WEIGHTS)
 
 
 @pytest.fixture(scope="module")
 def fixed(case, start, tmp_path_factory):
     """One flip at frame 30, one re-solve, saved."""
     fig, Q, cam, tracks, keys = case
-    s = Session(fig, tracks, cam, keys, result=start)
+    s = Session(fig, tracks, cam, keys, result=start, weights=WEIGHTS)
     before = s.q
     key = s.flip(FLIP_FRAME, SEGMENT)
     warm = s.q
@@ -56,7 +56,7 @@ def test_the_case_has_one_wrongly_flipped_limb(case, start):
 def test_resolving_without_the_flip_keeps_it_flipped(case, start):
     # the wrong side is a local minimum: a warm re-solve alone does not leave it
     fig, Q, cam, tracks, keys = case
-    s = Session(fig, tracks, cam, keys, result=start)
+    s = Session(fig, tracks, cam, keys, result=start, weights=WEIGHTS)
     s.set_joint(FLIP_FRAME, "left_elbow_Z", s.joint_value(FLIP_FRAME, "left_elbow_Z"))  # a no-op edit
     s.solve()
     assert len(flipped_frames(fig, cam, s.keypoints3d, Q, "right_knee", "right_ankle")) >= 15
@@ -102,7 +102,7 @@ def test_saved_keyframes_reproduce_the_result_through_the_command(case, fixed, t
     s, *_, out = fixed
     tracks.save(tmp_path / "tracks.json")
     cam.save(tmp_path / "camera.json")
-    code = main(["reconstruct", "--figure", "human", "--calibrate", "none", "--tracks", str(tmp_path / "tracks.json"), "--camera",
+    code = main(["reconstruct", "--figure", "human", "--calibrate", "none", "--pose-prior", "none", "--tracks", str(tmp_path / "tracks.json"), "--camera",
                  str(tmp_path / "camera.json"), "--keyframes", str(out / "keyframes.json"), "--out",
                  str(tmp_path / "again.npz"), "--quiet"])
     assert code == 0
@@ -116,7 +116,7 @@ def test_saved_keyframes_reproduce_the_result_through_the_command(case, fixed, t
 def test_reload_gives_the_same_state(case, fixed):
     fig, Q, cam, tracks, keys = case
     s, *_, out = fixed
-    r = Session(fig, tracks, cam, pr.load_keyframes(out / "keyframes.json"), result=pr.load_result(out / "result.npz"))
+    r = Session(fig, tracks, cam, pr.load_keyframes(out / "keyframes.json"), result=pr.load_result(out / "result.npz"), weights=WEIGHTS)
     np.testing.assert_allclose(r.q, s.q, atol=1e-12)
     assert r.keyframes.to_dict() == json.loads((out / "keyframes.json").read_text())
     assert len(r.keyframes) == len(keys) + 1
@@ -125,7 +125,7 @@ def test_reload_gives_the_same_state(case, fixed):
 
 def test_undo_redo_steps_through_edits_and_solves(case, start):
     fig, Q, cam, tracks, keys = case
-    s = Session(fig, tracks, cam, keys, result=start)
+    s = Session(fig, tracks, cam, keys, result=start, weights=WEIGHTS)
     q0, n0 = s.q, len(s.keyframes)
     assert not s.can_undo and s.undo() is False
     s.flip(FLIP_FRAME, SEGMENT)
@@ -146,7 +146,7 @@ def test_undo_redo_steps_through_edits_and_solves(case, start):
 
 def test_point_keyframe_moves_the_keypoint(case, start):
     fig, Q, cam, tracks, keys = case
-    s = Session(fig, tracks, cam, keys, result=start)
+    s = Session(fig, tracks, cam, keys, result=start, weights=WEIGHTS)
     i = list(fig.keypoint_names).index("left_wrist")
     p = s.keypoints3d[60, i]
     target = p + 0.15 * cam.R[2]  # 15 cm deeper along the camera axis: the image does not see it
@@ -162,7 +162,7 @@ def test_point_keyframe_moves_the_keypoint(case, start):
 
 def test_joint_keyframe_sets_the_angle(case, start):
     fig, Q, cam, tracks, keys = case
-    s = Session(fig, tracks, cam, keys, result=start)
+    s = Session(fig, tracks, cam, keys, result=start, weights=WEIGHTS)
     v0 = s.joint_value(70, "right_elbow_Z")
     key = s.set_joint(70, "right_elbow_Z", v0 + 0.3)
     assert float(key.joints["right_elbow_Z"]) == pytest.approx(v0 + 0.3)
@@ -174,7 +174,7 @@ def test_joint_keyframe_sets_the_angle(case, start):
 
 def test_bad_edits_raise_typed_errors(case, start):
     fig, Q, cam, tracks, keys = case
-    s = Session(fig, tracks, cam, keys, result=start)
+    s = Session(fig, tracks, cam, keys, result=start, weights=WEIGHTS)
     with pytest.raises(pr.InputError, match="right_knee>right_ankle"):
         s.flip(10, "tail>tip")
     with pytest.raises(pr.InputError, match="frame 500"):
@@ -186,7 +186,7 @@ def test_bad_edits_raise_typed_errors(case, start):
     with pytest.raises(pr.InputError, match="no keyframe 99"):
         s.delete_keyframe(99)
     with pytest.raises(pr.InputError, match="result.q"):
-        Session(fig, tracks, cam, keys, result=pr.Result.from_motion(fig, Q[:10], 30.0))
+        Session(fig, tracks, cam, keys, result=pr.Result.from_motion(fig, Q[:10], 30.0), weights=WEIGHTS)
 
 
 def test_mirror_and_span_geometry():
@@ -263,9 +263,9 @@ def test_uncertain_spans_come_from_the_result_and_are_drawn(case, start):
         hypothesis_spans=np.array([[1.0, 20.0, 45.0, 1.0, 0.5], [0.0, 60.0, 90.0, 0.0, 9.0]]),
         hypothesis_threshold=np.float64(2.0),
     )
-    s = Session(fig, tracks, cam, keys, result=replace(start, extras=extras))
+    s = Session(fig, tracks, cam, keys, result=replace(start, extras=extras), weights=WEIGHTS)
     assert s.uncertain_spans() == [(20, 45, "right_hip-right_knee-right_ankle")]
-    assert Session(fig, tracks, cam, keys, result=start).uncertain_spans() == []
+    assert Session(fig, tracks, cam, keys, result=start, weights=WEIGHTS).uncertain_spans() == []
     W, H = 480, 90
     img = timeline(np.ones(s.n_frames), 0, uncertain=[(a, b) for a, b, _ in s.uncertain_spans()], size=(W, H))
     row = img[H - 17]

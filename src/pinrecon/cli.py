@@ -146,6 +146,7 @@ def cmd_reconstruct(args) -> int:
         cam = cams
     kf = load_keyframes(args.keyframes) if args.keyframes else None
     wkw = {k: getattr(args, k) for k in ("sigma_px", "acc_root_translation", "acc_root_rotation", "acc_joints", "sigma_limits", "loss") if getattr(args, k, None) is not None}
+    wkw.update(pose_prior_weights(args))
     opts = SolverOptions(max_iterations=args.max_iterations)
     progress = _Progress(args.quiet, args.max_iterations)
     res = reconstruct(
@@ -375,6 +376,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--acc-root-rotation", type=float, help="smoothing: root angular acceleration sd, rad/s^2")
     r.add_argument("--acc-joints", type=float, help="smoothing: joint acceleration sd, rad/s^2")
     r.add_argument("--sigma-limits", type=float, help="joint-limit barrier sd, rad")
+    add_pose_prior_argument(r)
     r.add_argument("--max-iterations", type=int, default=100)
     r.add_argument("--window", type=int, help="solve in overlapping windows of this many frames, in bounded memory "
                    "(default: windows of 2000 frames past 10000 frames; 0: one batch solve)")
@@ -442,6 +444,7 @@ def build_parser() -> argparse.ArgumentParser:
     ed.add_argument("--fps-out", type=float, help="reconstruction rate (integer multiple of the tracks' rate)")
     ed.add_argument("--sigma-px", type=float, help="2D noise, pixels (default 2)")
     ed.add_argument("--loss", choices=["l2", "huber", "cauchy"], help="measurement loss (default l2)")
+    add_pose_prior_argument(ed)
     ed.add_argument("--out", default="pinrecon-edit", help="folder for saves and exports (default ./pinrecon-edit)")
     ed.add_argument("--keyframes-out", help="where Save writes the keyframes (default OUT/keyframes.json)")
     ed.add_argument("--result-out", help="where Save writes the result (default OUT/result.npz)")
@@ -461,6 +464,29 @@ def build_parser() -> argparse.ArgumentParser:
     li.add_argument("--all", action="store_true", help="list every passing triple and link")
     li.set_defaults(func=cmd_links)
     return p
+
+
+def _pose_prior(text: str):
+    if text.strip().lower() in ("none", "off"):
+        return None
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive number or 'none', got {text!r}") from None
+    if not 0 < v < float("inf"):
+        raise argparse.ArgumentTypeError(f"expected a positive number or 'none', got {text!r}")
+    return v
+
+
+def add_pose_prior_argument(parser) -> None:
+    parser.add_argument("--pose-prior", type=_pose_prior, default=argparse.SUPPRESS, metavar="SCALE|none",
+                        help="the generic human's pose prior from motion capture: its standard deviations times "
+                        "SCALE (default 3), or none (a weak rest-pose prior, as other figures)")
+
+
+def pose_prior_weights(args) -> dict:
+    """``{"pose_prior": ...}`` when ``--pose-prior`` was given, else ``{}``."""
+    return {"pose_prior": args.pose_prior} if hasattr(args, "pose_prior") else {}
 
 
 def main(argv=None) -> int:

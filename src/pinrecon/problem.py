@@ -29,6 +29,7 @@ from .rows import (
     CameraScale, GlobalPrior, JointKeyframes, JointLimits, Measurement2D, Points3D, Posture, Smoothing, State,
     smoothing_sigmas,
 )
+from .rows.posture import posture_row, rest_pose
 from .tracks import Keyframe, Keyframes, Markers, Tracks
 
 __all__ = [
@@ -110,6 +111,12 @@ class Weights:
         is turned into a pose (radians).
     sigma_posture : weak prior of every joint towards the rest pose in every frame
         (radians; ``None`` turns it off), see :mod:`pinrecon.rows.posture`.
+    pose_prior : the generic human (``Figure.human()``) has a pose prior learned from
+        motion capture instead (``models/priors/human_pose.json``): every 1-dof joint
+        pulled to its mean there with its standard deviation there times ``pose_prior``
+        (3: nine clips of five subjects are a small sample of human poses; ``None``: the
+        rest-pose prior of ``sigma_posture``, as other figures). Measured in
+        ``bench/bench_real.py``; see ``models/priors/README.md``.
     sigma_proportions : log-normal prior on the figure's segment scale factors when they
         are calibrated (``calibrate="lengths"``): standard deviation of the log factor
         around its start (0.1: about 10 %).
@@ -128,6 +135,7 @@ class Weights:
     sigma_markers_m: float = 0.01
     sigma_init_prior: float = 1.0
     sigma_posture: float | None = 3.0
+    pose_prior: float | None = 3.0
     root_group: str = "R3xSO3"
     sigma_proportions: float = 0.1
 
@@ -359,11 +367,6 @@ class ReconstructionProblem:
 
 
 # ----------------------------------------------------------------------------- helpers
-def rest_pose(figure, margin=0.05):
-    """The neutral configuration clamped inside the joint limits (with a margin)."""
-    return figure.clamp(figure.neutral(), margin=margin)
-
-
 def upsample_factor(fps_obs: float, fps_out: float | None) -> int:
     """Reconstruction frames per observed frame (``fps_out`` an integer multiple of ``fps_obs``)."""
     if fps_out is None:
@@ -631,8 +634,9 @@ def make_problem(
     smoothing, limits = prior_rows(figure, T, fps, weights)
     active = observable_mask(figure, used, keyframes)
     rows = [v.measurement for v in views] + [limits, smoothing]
-    if weights.sigma_posture is not None:
-        rows.append(Posture(figure, T, rest_pose(figure), weights.sigma_posture, active))
+    posture = posture_row(figure, T, weights, active)
+    if posture is not None:
+        rows.append(posture)
     if keyframes is not None and len(keyframes):
         rows += keyframe_rows(figure, keyframes, factors[0])
     g0, names = None, []
@@ -680,8 +684,9 @@ def make_marker_problem(
                   name="markers")
     smoothing, limits = prior_rows(figure, T, fps, weights)
     rows = [mk, limits, smoothing]
-    if weights.sigma_posture is not None:
-        rows.append(Posture(figure, T, rest_pose(figure), weights.sigma_posture))
+    posture = posture_row(figure, T, weights)
+    if posture is not None:
+        rows.append(posture)
     if keyframes is not None:
         keyframes.validate(figure, markers.T)
         rows += keyframe_rows(figure, keyframes, factor)

@@ -152,7 +152,7 @@ def human_walk(n_frames: int, fps: float = 30.0):
 
     The bundled CMU walk is retargeted to ``Figure.human()`` by fitting the figure's joint
     centres to the clip's joints (:func:`pinrecon.reconstruct_markers`, with the figure's
-    joint limits), at ``fps`` (120 divisible by it). The most repeatable gait cycle (start
+    joint limits and the weak rest-pose posture prior, not the pose prior), at ``fps`` (120 divisible by it). The most repeatable gait cycle (start
     and end pose and velocity closest) is then looped, treadmill-free: each loop continues
     from where the last ended. Returns (figure with COCO-17 keypoints, q (n_frames, nq)).
     """
@@ -187,7 +187,8 @@ def _human_walk_cycle(fps: float):
     human = Figure.human("joints")
     names = list(HUMAN_FROM_CMU)
     P = bfig.keypoints(bq)[:, bfig.keypoint_index([HUMAN_FROM_CMU[n] for n in names])]
-    res = reconstruct_markers(human, Markers(P, names, fps), weights=Weights(sigma_markers_m=0.02))
+    # the rest-pose posture prior: a ground truth made from the clip, not from the pose prior
+    res = reconstruct_markers(human, Markers(P, names, fps), weights=Weights(sigma_markers_m=0.02, pose_prior=None))
     q = res.q
     # most repeatable cycle of 0.8 - 1.4 s: closest joint angles and joint velocities
     n = len(q)

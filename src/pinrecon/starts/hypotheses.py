@@ -34,9 +34,14 @@ that smoother, made tractable by the figure's structure (geometry in :mod:`.limb
 4. **Path.** Dynamic programming over frames (sub-sampled to ``rate_hz``) picks the
    cheapest path per limb; forward and backward passes give every state's min-marginal
    cost. The limb's joints follow the chosen states' poses (interpolated in between).
-5. **Choice.** Every candidate (limbs on the base, limbs on the flipped trunk, the base
-   alone, and with keyframes the planarity seed) is solved ``final_options`` long with
-   the whole problem; the lowest MAP cost is the start.
+5. **Splice.** The trunk's reflection may change within a clip (a turn, a pirouette: the
+   trunk passes edge-on to the camera, where both reflections look alike). The two
+   solved trunk candidates are spliced per frame (:func:`splice_path`): dynamic
+   programming over each frame's share of their MAP cost, a switch costing the distance
+   between their keypoints there (so it happens where they nearly coincide).
+6. **Choice.** Every candidate (limbs on the base, limbs on the flipped trunk, their
+   splice, the base alone, and with keyframes the planarity seed) is solved
+   ``final_options`` long with the whole problem; the lowest MAP cost is the start.
 
 Measured in ``bench/bench_real.py`` (README there).
 
@@ -58,7 +63,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.ndimage import minimum_filter1d
 
-from ..problem import ReconstructionProblem, rest_pose
+from ..problem import ReconstructionProblem, posture_row, rest_pose
 from ..rows import JointLimits, Points3D, Posture
 from ..solver import SolverOptions, solve
 from .keyframes import keyframe_start
@@ -74,8 +79,8 @@ from .limbs import (
 )
 from .rest import rest_start
 
-__all__ = ["UNCERTAIN_GAP", "HypothesisReport", "Span", "hypotheses_start", "min_sum_path", "search_hypotheses",
-           "span_gaps"]
+__all__ = ["UNCERTAIN_GAP", "HypothesisReport", "Span", "frame_costs", "hypotheses_start", "min_sum_path",
+           "search_hypotheses", "span_gaps", "splice_path"]
 
 #: spans whose cost gap is below this many nats (a likelihood ratio under e^2 = 7.4) are
 #: reported as uncertain; on the detector-like walk of bench_real 12 of 14 spans above it
@@ -123,6 +128,7 @@ class HypothesisReport:
     alternatives: dict = field(default_factory=dict)
     kept_base: bool = False
     chosen: str = "limbs"
+    trunk_switches: list = field(default_factory=list)
 
     def uncertain_spans(self) -> list[Span]:
         return [s for s in self.spans if s.gap < self.threshold]
@@ -262,8 +268,13 @@ def _ik(fig, Q_start, kps, targets, active, w, sigma_pull_m, options):
     """Batch inverse kinematics, every frame on its own: 3D targets, limits, posture."""
     F = len(Q_start)
     rows = [Points3D(np.arange(F), kps, targets, sigma_pull_m, name="hypothesis"),
-            JointLimits(fig, F, w.sigma_limits), Posture(fig, F, rest_pose(fig), w.sigma_posture or 3.0, active)]
+            JointLimits(fig, F, w.sigma_limits), _posture(fig, F, w, active)]
     return fig.normalize(solve(ReconstructionProblem(fig, F, rows), Q_start, options, active=active).x)
+
+
+def _posture(fig, F, w, active):
+    """The problem's posture prior (the generic human's pose prior), else a weak rest pose."""
+    return posture_row(fig, F, w, active) or Posture(fig, F, rest_pose(fig), 3.0, active)
 
 
 def _misfit(fig, Q, chains, kps, targets):
@@ -332,7 +343,7 @@ def _score_states(problem, chains, frames, Q_base, D, options, sigma_pull_m, sig
     K_kf, sig_kf = K_kf[frames], sig_kf[frames]
     fwd = np.asarray(problem.camera.R, float)[2]
     limits = JointLimits(fig, F, w.sigma_limits)
-    posture = Posture(fig, F, rest_pose(fig), w.sigma_posture or 3.0, active)
+    posture = _posture(fig, F, w, active)
     unary = [np.zeros((F, c.n_states)) for c in chains]
     dirs = [np.zeros((F, c.n_states, c.n_segments, 3)) for c in chains]
     for h in range(H):
@@ -427,6 +438,7 @@ def search_hypotheses(
     torso: bool = True,
     planarity: bool = True,
     threshold: float = UNCERTAIN_GAP,
+    splice_sigma_m: float = 0.05,
 ) -> tuple[np.ndarray, HypothesisReport]:
     """The multi-hypothesis start and its report (see the module docstring).
 
@@ -450,6 +462,10 @@ def search_hypotheses(
         the planarity seed) is solved ``final_options`` long and the lowest MAP cost wins
         (``report.chosen``, ``report.alternatives``).
     threshold : spans with a smaller cost gap (nats) are reported uncertain.
+    splice_sigma_m : the splice's switch between the trunk candidates at frame t costs
+        ``0.5 sum_k |p_k^A(t) - p_k^B(t)|^2 / splice_sigma_m^2`` (0: no splice). The
+        spliced candidate's frames from the flipped trunk are ``report.trunk_switches``
+        apart when it wins.
 
     Returns
     -------
@@ -486,6 +502,17 @@ def search_hypotheses(
                                                        ik_options, sigma_pull_m)
         res = solve(problem, Q0, final_options, active=problem.active)
         results.append((res.cost, fig.normalize(res.x), labels, states, gaps, spans, Qb, "trunk flipped" if k else "limbs"))
+    switches = []
+    if len(results) == 2 and splice_sigma_m > 0:
+        QA, QB = results[0][1], results[1][1]
+        path = splice_path(frame_costs(problem, QA), frame_costs(problem, QB), problem.keypoints(QA),
+                           problem.keypoints(QB), splice_sigma_m)
+        if 0 < path.sum() < T:
+            res = solve(problem, fig.clamp(np.where(path[:, None] == 1, QB, QA), 1e-3), final_options,
+                        active=problem.active)
+            k = 0 if results[0][0] <= results[1][0] else 1  # the limbs' report of the better trunk
+            results.append((res.cost, fig.normalize(res.x), *results[k][2:7], "trunk spliced"))
+            switches = (np.flatnonzero(np.diff(path)) + 1).tolist()
     order = np.argsort([r[0] for r in results])
     cost, Q, labels, states, gaps, spans, Qb, won = results[order[0]]
     report = HypothesisReport(labels, np.stack(states, 1), np.stack(gaps, 1), spans, fps, problem.factor,
@@ -493,6 +520,7 @@ def search_hypotheses(
     if len(results) > 1:
         report.torso_gap = float(results[order[1]][0] - cost)
         report.torso_flipped = won == "trunk flipped"
+        report.trunk_switches = switches if won == "trunk spliced" else []
     # the search only proposes starts: it must not lose to the base solved as long, nor,
     # with keyframes, to the planarity seed (which decides whole planar spans from them)
     others = [("base", Q_base)]
@@ -509,6 +537,33 @@ def search_hypotheses(
     report.kept_base = won == "base"
     report.chosen = won
     return fig.clamp(Q, margin=1e-3), report
+
+
+def frame_costs(problem, Q) -> np.ndarray:
+    """(T,) each frame's share of ``0.5 |r|^2`` over the problem's rows at ``Q`` (globals at
+    their start): a row over s frames gives each 1 / s (robust rows: their reweighted
+    residuals)."""
+    c = np.zeros(problem.n_frames)
+    for b in problem.evaluate(Q, False):
+        for blk in b if isinstance(b, (list, tuple)) else [b]:
+            if blk is None or not blk.r.size or not blk.frames.size:
+                continue
+            e = 0.5 * (np.asarray(blk.r).reshape(len(blk.frames), -1) ** 2).sum(1) / blk.frames.shape[1]
+            for i in range(blk.frames.shape[1]):
+                np.add.at(c, blk.frames[:, i], e)
+    return c
+
+
+def splice_path(cost_a, cost_b, P_a, P_b, sigma_m: float) -> np.ndarray:
+    """(T,) 0/1 per frame: which of two trajectories to follow, the path of least
+    ``sum_t cost[t, h_t]`` plus ``0.5 |P_a(t) - P_b(t)|^2 / sigma_m^2`` (summed over
+    keypoints, the mean of frames t and t + 1) at each switch between t and t + 1.
+    ``cost_a``, ``cost_b`` (T,) per-frame costs (:func:`frame_costs`), ``P_a``, ``P_b``
+    (T, K, 3) keypoints."""
+    jump = 0.5 * ((np.asarray(P_a) - np.asarray(P_b)) ** 2).sum(axis=(1, 2)) / sigma_m**2
+    trans = np.zeros((len(jump) - 1, 2, 2))
+    trans[:, 0, 1] = trans[:, 1, 0] = 0.5 * (jump[:-1] + jump[1:])
+    return min_sum_path(np.stack([cost_a, cost_b], 1), trans)[0]
 
 
 def _planarity_seed(problem):

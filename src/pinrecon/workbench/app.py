@@ -384,6 +384,8 @@ def edit_from_args(args, figure=None) -> int:
     camera = load_camera(args.camera)
     keys = load_keyframes(args.keyframes) if args.keyframes else None
     wkw = {k: getattr(args, k) for k in ("sigma_px", "loss") if getattr(args, k, None) is not None}
+    if hasattr(args, "pose_prior"):  # --pose-prior given
+        wkw["pose_prior"] = args.pose_prior
     if result is None:
         print("pinrecon edit: solving once before serving ...", file=__import__("sys").stderr, flush=True)
     session = Session(figure, tracks, camera, keys, result=result, fps_out=args.fps_out, weights=Weights(**wkw))
