@@ -104,7 +104,11 @@ def _camera_and_mode(figure, tracks, camera, keyframes, calibrate, image_size=No
     ``(camera, mode, auto)`` with ``auto`` a description of the auto camera or ``None``.
     """
     auto = AutoCamera.parse(camera, image_size=image_size) if isinstance(camera, (str, AutoCamera)) else None
-    one_view = auto is None and not isinstance(tracks, (list, tuple))
+    # one view whose limb lengths the tracks can measure: a given camera, or the perspective
+    # auto camera (its start places the figure by its size, so the lengths come out relative
+    # to the figure's, whatever the focal length)
+    measurable = auto is None or auto.projection == "perspective"
+    one_view = measurable and not isinstance(tracks, (list, tuple))
     mode = default_calibrate(figure, keyframes, lengths_from_tracks and one_view) if calibrate is None else calibrate
     if isinstance(camera, str) and auto is None:
         raise InputError(f"a camera, a list of cameras or 'auto', got {camera!r}", field="camera")
@@ -233,7 +237,8 @@ def reconstruct(
         keyframes or, without them, one given camera (the lengths then start at what the
         tracks measure, ``lengths_from_tracks``); ``"none"`` otherwise and for any other
         figure (:func:`pinrecon.problem.default_calibrate`); with the auto camera, plus
-        ``"camera"``.
+        ``"camera"`` (a perspective auto camera measures the lengths from the tracks too:
+        its start places the figure by its size, so they come out relative to it).
     image_size : (W, H) pixels, for ``camera="auto"`` when the tracks carry no image size.
     lengths_from_tracks : when the lengths are calibrated from one camera with no 3D
         keyframe (nothing else gives the proportions), start them, and centre their prior,
@@ -257,9 +262,9 @@ def reconstruct(
     problem = make_problem(figure, tracks, camera, keyframes, fps_out=fps_out, weights=weights, keypoints=keypoints,
                            calibrate=mode)
     span = windowed_length(problem.n_frames, window if window is not None or floor is None and contact is None else 0)
-    if span and calibrate is None and auto is None and mode == "lengths" and default_calibrate(figure, keyframes) == "none":
+    if span and calibrate is None and mode in ("lengths", "lengths+camera") and default_calibrate(figure, keyframes) == "none":
         # windows measure no lengths: the default without 3D information stays the figure's own
-        mode = default_calibrate(figure, keyframes)
+        mode = "camera" if auto is not None else "none"
         problem = make_problem(figure, tracks, camera, keyframes, fps_out=fps_out, weights=weights,
                                keypoints=keypoints, calibrate=mode)
     if span:  # a long clip: windows in bounded memory (the fault stage runs in each)
@@ -267,7 +272,8 @@ def reconstruct(
             raise InputError("the feet stage (floor, contact) needs one batch solve: pass window=0", field="window")
         return _package(problem, solve_windowed(problem, _start_name(init, seed), options, callback, window=span), auto)
     q0 = initial_trajectory(problem, _start_name(init, seed))
-    if lengths_from_tracks and auto is None and (init is None or isinstance(init, str)):
+    if lengths_from_tracks and (auto is None or auto["projection"] == "perspective") and (
+            init is None or isinstance(init, str)):
         inputs = {"figure": figure, "tracks": tracks, "camera": camera, "keyframes": keyframes, "fps_out": fps_out,
                   "weights": weights, "keypoints": keypoints}
         problem, q0 = _lengths_from_tracks(problem, q0, _start_name(init, seed), inputs)
