@@ -566,6 +566,12 @@ def _observed_names(problem) -> list[str] | None:
     return None if src is None else list(src.names)
 
 
+def _globals_of(res):
+    """A solve result's global unknowns, None when it has none."""
+    g = getattr(res, "g", None)
+    return None if g is None or not len(g) else g
+
+
 def _lifting(C, n: int):
     """Contacts ``C`` (T, F) each extended by ``n`` frames after its end."""
     out = np.array(C, bool)
@@ -648,14 +654,11 @@ def solve_on_the_floor(problem, res, floor="auto", contact="auto", *, settings: 
     x = res.x
     feet = None
     out_problem = problem
-    hold = []
-    if s.hold_m > 0:
-        g = getattr(res, "g", None)
-        hold = hold_rows(problem, x, None if g is None or not len(g) else g, _foot_names(problem), s.hold_m)
+    names = _foot_names(problem)
+    hold = hold_rows(problem, x, _globals_of(res), names, s.hold_m) if s.hold_m > 0 else []
     for _ in range(int(s.rounds)):
-        g = getattr(res, "g", None)
-        g = None if g is None or not len(g) else g
-        feet = ground_contacts(problem, x, floor, contact, s, names=None if feet is None else feet.names, g=g)
+        g = _globals_of(res)
+        feet = ground_contacts(problem, x, floor, contact, s, names=names, g=g)
         out_problem = problem.with_rows(contact_rows(problem.figure, feet, problem.fps, s, problem.factor) + hold)
         res = solve(out_problem, x, options, callback, active=problem.active, **({} if g is None else {"g0": g}))
         x = res.x

@@ -93,6 +93,14 @@ def _start_name(init, seed):
     return init
 
 
+def _lengths_measurable(auto_projection: str | None) -> bool:
+    """Whether one camera's tracks can measure the limb lengths: a given camera
+    (``auto_projection`` None), or the perspective auto camera (its start places the
+    figure by its size, so the lengths come out relative to the figure's whatever the
+    focal length); not the orthographic auto camera (measured worse with them)."""
+    return auto_projection is None or auto_projection == "perspective"
+
+
 def _camera_and_mode(figure, tracks, camera, keyframes, calibrate, image_size=None, lengths_from_tracks=False):
     """The camera(s) to build the problem with and the calibration mode.
 
@@ -104,11 +112,7 @@ def _camera_and_mode(figure, tracks, camera, keyframes, calibrate, image_size=No
     ``(camera, mode, auto)`` with ``auto`` a description of the auto camera or ``None``.
     """
     auto = AutoCamera.parse(camera, image_size=image_size) if isinstance(camera, (str, AutoCamera)) else None
-    # one view whose limb lengths the tracks can measure: a given camera, or the perspective
-    # auto camera (its start places the figure by its size, so the lengths come out relative
-    # to the figure's, whatever the focal length)
-    measurable = auto is None or auto.projection == "perspective"
-    one_view = measurable and not isinstance(tracks, (list, tuple))
+    one_view = _lengths_measurable(auto and auto.projection) and not isinstance(tracks, (list, tuple))
     mode = default_calibrate(figure, keyframes, lengths_from_tracks and one_view) if calibrate is None else calibrate
     if isinstance(camera, str) and auto is None:
         raise InputError(f"a camera, a list of cameras or 'auto', got {camera!r}", field="camera")
@@ -272,8 +276,7 @@ def reconstruct(
             raise InputError("the feet stage (floor, contact) needs one batch solve: pass window=0", field="window")
         return _package(problem, solve_windowed(problem, _start_name(init, seed), options, callback, window=span), auto)
     q0 = initial_trajectory(problem, _start_name(init, seed))
-    if lengths_from_tracks and (auto is None or auto["projection"] == "perspective") and (
-            init is None or isinstance(init, str)):
+    if lengths_from_tracks and _lengths_measurable(auto and auto["projection"]) and (init is None or isinstance(init, str)):
         inputs = {"figure": figure, "tracks": tracks, "camera": camera, "keyframes": keyframes, "fps_out": fps_out,
                   "weights": weights, "keypoints": keypoints}
         problem, q0 = _lengths_from_tracks(problem, q0, _start_name(init, seed), inputs)

@@ -3,7 +3,7 @@
 ``r = (q_joint - q_ref) / sigma`` per frame, a diagonal block; ``sigma`` one number or one
 per configuration entry (``(nq,)``, read at the joints' q indices). The generic human's
 reference and ``sigma`` are its pose prior learned from motion capture (the joints' mean and
-standard deviation, :func:`pinrecon.problem.posture_row`); other figures get the rest pose
+standard deviation, :func:`posture_row`); other figures get the rest pose
 and one weak ``sigma``. With a large ``sigma``
 (default 1 rad) it barely moves well-observed joints (the bias on a joint is about
 ``(q - q_ref) / (sigma^2 H_data)``), but it gives the directions the data cannot see
@@ -20,7 +20,6 @@ import json
 import numpy as np
 
 from .._resources import model_path
-
 from .base import RowBlock, RowKind, State
 
 __all__ = ["Posture", "pose_prior", "posture_row", "rest_pose"]
