@@ -101,12 +101,12 @@ def detector_case(clip, azimuth, keyframes, frames=None, seed=0):
 
 def _start(start, keys):
     """The start ``reconstruct`` runs: "previous" is the default before issue 10, "auto"
-    today's default (the multi-hypothesis start without keyframes, the keyframe start
-    with them)."""
+    today's default (``pinrecon.starts.auto_start``: the multi-hypothesis start without
+    keyframes or with sparse ones, the keyframe start with denser ones)."""
     if start == "previous":
         return "keyframes" if keys is not None else "rest"
     if start == "auto":
-        return "keyframes" if keys is not None else "hypotheses"
+        return "auto"
     return start
 
 

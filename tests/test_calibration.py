@@ -206,8 +206,12 @@ def test_without_keyframes_the_limb_lengths_start_at_what_the_tracks_measure(coc
     assert cal["mode"] == "lengths"
     measured, fitted, generic = cal["lengths_from_tracks"], cal["lengths_m"], cal["generic_lengths_m"]
     assert set(measured) == set(pairs)
+    # one view measures the limbs at the depth where the start puts the figure (by its
+    # generic trunk): their proportions closely, their common scale with that depth's error
+    scale = np.exp(np.mean([np.log(measured[g] / true) for g, true in truth.items()]))
     for g, true in truth.items():
-        assert abs(measured[g] / true - 1.0) <= 0.08, (g, measured[g], true)
+        assert abs(measured[g] / (scale * true) - 1.0) <= 0.03, (g, measured[g], true, scale)
+        assert abs(measured[g] / true - 1.0) <= 0.10, (g, measured[g], true)
         assert abs(fitted[g] / true - 1.0) <= 0.10, (g, fitted[g], true)
     assert generic["forearm"] / truth["forearm"] > 1.4  # what the generic figure would have kept
     assert f"forearm {measured['forearm']:.3f} m" in res.summary()  # the summary says what was measured

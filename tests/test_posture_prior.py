@@ -1,6 +1,7 @@
 """The generic human's pose prior (models/priors/human_pose.json) and the posture row it
-makes: read back from the JSON by hand, residuals by hand, the rest-pose prior for other
-figures and when turned off."""
+makes: read back from the JSON by hand, its cost by hand (Mahalanobis distance of the
+correlated joints, standard deviations of the others), its Jacobian against finite
+differences, the rest-pose prior for other figures and when turned off."""
 
 from __future__ import annotations
 
@@ -12,6 +13,7 @@ import pytest
 import pinrecon as pr
 from pinrecon._resources import model_path
 from pinrecon.problem import Weights, posture_row, rest_pose
+from pinrecon.rows.posture import pose_prior
 from pinrecon.rows import State
 from pinrecon.synthetic import bundled_motion
 
@@ -34,25 +36,103 @@ def test_prior_file_names_the_human_joints_within_their_limits(table):
     # the knees bend one way and are bent on average in the clips
     for hinge in ("left_knee_Z", "right_knee_Z"):
         assert table["joints"][hinge][0] > 0.3
+    # the correlated block: the joints that move (std above the floor), their covariance
+    # symmetric positive definite, its diagonal their variance (+ 1e-4, rounding of std)
+    corr = table["correlated"]
+    moving = [n for n, (_, std) in table["joints"].items() if std > table["min_std_rad"]]
+    assert sorted(corr["joints"]) == sorted(moving) and len(moving) >= 12
+    C = np.array(corr["covariance"])
+    np.testing.assert_allclose(C, C.T, atol=1e-7)
+    assert np.linalg.eigvalsh(C).min() > 0
+    std = np.array([table["joints"][n][1] for n in corr["joints"]])
+    np.testing.assert_allclose(np.diag(C), std**2 + 1e-4, rtol=2e-3, atol=1e-6)
+    # a walking hip's flexion and its knee's flexion move together
+    k = {n: i for i, n in enumerate(corr["joints"])}
+    rho = C[k["left_hip_Z"], k["left_knee_Z"]] / np.sqrt(C[k["left_hip_Z"], k["left_hip_Z"]] * C[k["left_knee_Z"], k["left_knee_Z"]])
+    assert abs(rho) > 0.2
+
+
+def _prior_cost_by_hand(table, fig, Q, scale, huber=None):
+    """Per frame: 0.5 m^2 (Huber beyond ``huber``), m the correlated joints' Mahalanobis
+    distance / scale, plus 0.5 * the others' squared z / scale^2."""
+    m = fig.model
+    q_of = {m.names[j]: m.idx_qs[j] for j in range(1, m.njoints) if m.nqs[j] == 1}
+    rest = rest_pose(fig)
+    corr = table["correlated"]["joints"]
+    qc = [q_of[n] for n in corr]
+    D = Q[:, qc] - np.array([table["joints"][n][0] for n in corr])
+    C = np.array(table["correlated"]["covariance"])
+    dist = np.sqrt(np.einsum("ti,ti->t", D, np.linalg.solve(C, D.T).T)) / scale
+    if huber is None:
+        cost = 0.5 * dist**2
+    else:
+        cost = np.where(dist <= huber, 0.5 * dist**2, huber * dist - 0.5 * huber**2)
+    for name, iq in q_of.items():
+        if name not in corr:  # the file's mean and std, or the rest pose and 1 rad
+            mean, std = table["joints"].get(name, (rest[iq], 1.0))
+            cost += 0.5 * ((Q[:, iq] - mean) / (scale * std)) ** 2
+    return cost
+
+
+def _poses(fig, n, amplitude, seed):
+    rng = np.random.default_rng(seed)
+    return np.stack([fig.integrate(fig.neutral(), amplitude * rng.normal(size=fig.nv)) for _ in range(n)])
 
 
 def test_posture_row_of_the_human_by_hand(table):
     fig = pr.Figure.human()
-    m = fig.model
-    rng = np.random.default_rng(0)
-    Q = np.stack([fig.integrate(fig.neutral(), 0.4 * rng.normal(size=fig.nv)) for _ in range(4)])
+    Q = _poses(fig, 6, 0.4, 0)
+    Q[0] = fig.integrate(pose_prior(fig, rest_pose(fig))[0], 0.02 * np.ones(fig.nv))  # near the mean
+    quadratic = posture_row(fig, 6, Weights(pose_prior_huber=None)).evaluate(State(fig, Q, np.arange(6), True))
+    np.testing.assert_allclose(0.5 * (quadratic.r**2).sum(1), _prior_cost_by_hand(table, fig, Q, 2.0), rtol=1e-9)
+    # Weights(pose_prior=1): the same means, one standard deviation: four times the cost
+    r1 = posture_row(fig, 6, Weights(pose_prior=1.0, pose_prior_huber=None)).evaluate(State(fig, Q, np.arange(6), True)).r
+    np.testing.assert_allclose((r1**2).sum(1), 4 * (quadratic.r**2).sum(1), rtol=1e-9)
+    # the default: Huber at a distance of 2 (some of these random poses are beyond it, some not)
+    blk = posture_row(fig, 6, Weights()).evaluate(State(fig, Q, np.arange(6), True))
+    expect = _prior_cost_by_hand(table, fig, Q, 2.0, huber=2.0)
+    assert blk.cost == pytest.approx(expect.sum(), rel=1e-9)
+    assert (expect < _prior_cost_by_hand(table, fig, Q, 2.0)).any()
+    assert (expect == _prior_cost_by_hand(table, fig, Q, 2.0)).any()
+
+
+def _fd(row, fig, Q, col, f, eps=1e-6):
+    v = np.zeros(fig.nv)
+    v[col] = eps
+    Qp = np.stack([fig.integrate(q, v) for q in Q])
+    Qm = np.stack([fig.integrate(q, -v) for q in Q])
+    return (f(row.evaluate(State(fig, Qp, np.arange(len(Q)), False), False))
+            - f(row.evaluate(State(fig, Qm, np.arange(len(Q)), False), False))) / (2 * eps)
+
+
+@pytest.mark.parametrize("some_inactive", [False, True])
+def test_posture_row_jacobian_against_finite_differences(some_inactive):
+    fig = pr.Figure.human()
+    Q = _poses(fig, 3, 0.3, 1)
+    active = None
+    if some_inactive:  # e.g. one leg only, as the hypothesis search's inverse kinematics
+        active = np.zeros(fig.nv, bool)
+        active[fig.support_mask(["left_knee", "left_ankle"])] = True
+    row = posture_row(fig, 3, Weights(pose_prior_huber=None), active)
+    blk = row.evaluate(State(fig, Q, np.arange(3), True))
+    J = np.asarray(blk.J)[:, 0]  # (T, m, c)
+    for k, col in enumerate(row.cols):
+        np.testing.assert_allclose(J[:, :, k], _fd(row, fig, Q, col, lambda b: b.r), atol=1e-7)
+    if some_inactive:  # rows of every correlated joint, columns of the active ones only
+        assert set(row.cols) <= set(np.flatnonzero(active)) and 0 < len(row.cols) < 6
+        assert blk.r.shape[1] >= len(row.qcorr) > len(row.cols)
+
+
+def test_huber_rows_give_the_gradient_of_their_cost():
+    """Reweighted rows (J, r scaled by sqrt(w)): J^T r is the gradient of the Huber cost."""
+    fig = pr.Figure.human()
+    Q = _poses(fig, 4, 0.5, 2)
     row = posture_row(fig, 4, Weights())
-    r = row.evaluate(State(fig, Q, np.arange(4), True)).r
-    expect = {}
-    rest = rest_pose(fig)
-    for jid in range(1, m.njoints):
-        if m.nqs[jid] == 1:  # joints the file leaves out: the rest pose, 1 rad
-            mean, std = table["joints"].get(m.names[jid], (rest[m.idx_qs[jid]], 1.0))
-            expect[m.idx_vs[jid]] = (Q[:, m.idx_qs[jid]] - mean) / (3.0 * std)
-    np.testing.assert_allclose(r, np.stack([expect[c] for c in row.cols], 1), rtol=1e-12)
-    # Weights(pose_prior=2): the same means, two standard deviations
-    r2 = posture_row(fig, 4, Weights(pose_prior=2.0)).evaluate(State(fig, Q, np.arange(4), True)).r
-    np.testing.assert_allclose(r2, 1.5 * r, rtol=1e-12)
+    blk = row.evaluate(State(fig, Q, np.arange(4), True))
+    grad = np.einsum("tmc,tm->tc", np.asarray(blk.J)[:, 0], blk.r)
+    for k, col in enumerate(row.cols):
+        fd = np.array([_fd(row, fig, Q[t : t + 1], col, lambda b: b.cost) for t in range(4)])
+        np.testing.assert_allclose(grad[:, k], fd, rtol=1e-5, atol=1e-7)
 
 
 def test_other_figures_and_no_prior_keep_the_rest_pose():
@@ -65,4 +145,5 @@ def test_other_figures_and_no_prior_keep_the_rest_pose():
     off = posture_row(human, 2, Weights(pose_prior=None))
     np.testing.assert_allclose(off.q_ref, rest_pose(human)[off.qidx])
     np.testing.assert_allclose(off.inv_sigma, 1.0 / 3.0)
+    assert type(off) is not type(posture_row(human, 2, Weights()))
     assert posture_row(human, 2, Weights(pose_prior=None, sigma_posture=None)) is None

@@ -6,7 +6,12 @@ are fitted by ``pinrecon.reconstruct_markers`` with ``Figure.human()`` (its anat
 limits; the rest-pose posture prior, not this one); the prior is the mean and standard
 deviation of every 1-dof joint angle over all fitted frames (the standard deviation at
 least ``--min-std`` rad), except the joints ``--skip`` names (the elbows' flexion), which
-keep the weak rest-pose prior.
+keep the weak rest-pose prior; and the covariance of the joints that move (standard
+deviation above ``--min-std``), shrunk towards its diagonal by ``--shrink`` (Ledoit-Wolf
+style, with 1e-4 rad^2 added on the diagonal) so that about a thousand frames give a well
+conditioned matrix: how the joints move together (a walking thigh swings forwards with the
+knee bent, not sideways), which tells the reflections of a limb apart where each joint's
+own range does not.
 
     python tools/fit_pose_prior.py cmu-mb_01_01.bvh cmu-max_131_03.bvh -o models/priors/human_pose.json
 
@@ -71,6 +76,8 @@ def main(argv=None):
     ap.add_argument("--skip", default="elbow_Z",
                     help="regular expression of joints left out (default the elbows' flexion: its mean depends on "
                     "the activity, and with it a 2 s walk's forearm was calibrated 16 %% long)")
+    ap.add_argument("--shrink", type=float, default=0.1,
+                    help="weight of the diagonal in the covariance (0: the sample covariance, 1: independent joints)")
     ap.add_argument("--max-frames", type=int, default=150,
                     help="frames kept per clip, evenly spaced, so that every clip weighs about the same")
     a = ap.parse_args(argv)
@@ -84,13 +91,21 @@ def main(argv=None):
         clips.append({"file": Path(path).name, "frames": len(q), "fit_error_mm": round(1000 * err, 1)})
         print(f"{path}: {len(q)} frames kept (of the clip at 30 fps), markers fitted to {1000 * err:.1f} mm")
     Q = np.concatenate(qs)
-    joints = {}
+    joints, moving = {}, []
     for jid in range(1, m.njoints):
         if m.nqs[jid] == 1 and m.nvs[jid] == 1 and not (a.skip and re.search(a.skip, m.names[jid])):
             x = Q[:, m.idx_qs[jid]]
             joints[m.names[jid]] = [round(float(x.mean()), 5), round(max(float(x.std()), a.min_std), 5)]
-    out = {"figure": "Figure.human()", "units": "rad", "joints": joints, "clips": clips, "frames": int(len(Q)),
-           "min_std_rad": a.min_std, "skipped": a.skip, "made_by": "tools/fit_pose_prior.py"}
+            if x.std() > a.min_std:
+                moving.append(jid)
+    X = Q[:, [m.idx_qs[j] for j in moving]]
+    C = np.cov(X, rowvar=False, bias=True)
+    C = (1.0 - a.shrink) * C + a.shrink * np.diag(np.diag(C)) + 1e-4 * np.eye(len(moving))
+    out = {"figure": "Figure.human()", "units": "rad", "joints": joints,
+           "correlated": {"joints": [m.names[j] for j in moving], "shrink": a.shrink,
+                          "covariance": [[round(float(v), 7) for v in row] for row in C]},
+           "clips": clips, "frames": int(len(Q)), "min_std_rad": a.min_std, "skipped": a.skip,
+           "made_by": "tools/fit_pose_prior.py"}
     Path(a.out).parent.mkdir(parents=True, exist_ok=True)
     Path(a.out).write_text(json.dumps(out, indent=1) + "\n")
     print(f"wrote {a.out}: {len(joints)} joints, {len(Q)} frames")

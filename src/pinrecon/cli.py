@@ -480,8 +480,9 @@ def _pose_prior(text: str):
 
 def add_pose_prior_argument(parser) -> None:
     parser.add_argument("--pose-prior", type=_pose_prior, default=argparse.SUPPRESS, metavar="SCALE|none",
-                        help="the generic human's pose prior from motion capture: its standard deviations times "
-                        "SCALE (default 3), or none (a weak rest-pose prior, as other figures)")
+                        help="the generic human's pose prior from motion capture (a joint Gaussian): its "
+                        "standard deviations times SCALE (default 2), or none (a weak rest-pose prior, as "
+                        "other figures)")
 
 
 def pose_prior_weights(args) -> dict:

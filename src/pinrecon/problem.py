@@ -112,11 +112,14 @@ class Weights:
     sigma_posture : weak prior of every joint towards the rest pose in every frame
         (radians; ``None`` turns it off), see :mod:`pinrecon.rows.posture`.
     pose_prior : the generic human (``Figure.human()``) has a pose prior learned from
-        motion capture instead (``models/priors/human_pose.json``): every 1-dof joint
-        pulled to its mean there with its standard deviation there times ``pose_prior``
-        (3: nine clips of five subjects are a small sample of human poses; ``None``: the
-        rest-pose prior of ``sigma_posture``, as other figures). Measured in
-        ``bench/bench_real.py``; see ``models/priors/README.md``.
+        motion capture instead (``models/priors/human_pose.json``): the joints that move in
+        its clips held by their joint Gaussian, i.e. their Mahalanobis distance from the
+        mean in units of ``pose_prior``, every other 1-dof joint pulled to its mean with its
+        standard deviation times ``pose_prior`` (2: nine clips of five subjects are a small
+        sample of human poses; ``None``: the rest-pose prior of ``sigma_posture``, as other
+        figures). Measured in ``bench/bench_real.py``; see ``models/priors/README.md``.
+    pose_prior_huber : Mahalanobis distance (units of ``pose_prior``) beyond which a frame's pose
+        prior grows linearly (Huber; ``None``: quadratic), :class:`~pinrecon.rows.posture.PosePrior`.
     sigma_proportions : log-normal prior on the figure's segment scale factors when they
         are calibrated (``calibrate="lengths"``): standard deviation of the log factor
         around its start (0.1: about 10 %).
@@ -135,7 +138,8 @@ class Weights:
     sigma_markers_m: float = 0.01
     sigma_init_prior: float = 1.0
     sigma_posture: float | None = 3.0
-    pose_prior: float | None = 3.0
+    pose_prior: float | None = 2.0
+    pose_prior_huber: float | None = 2.0
     root_group: str = "R3xSO3"
     sigma_proportions: float = 0.1
 

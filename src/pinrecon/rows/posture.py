@@ -1,10 +1,11 @@
 """A posture prior: every 1-dof joint pulled towards a reference pose.
 
 ``r = (q_joint - q_ref) / sigma`` per frame, a diagonal block; ``sigma`` one number or one
-per configuration entry (``(nq,)``, read at the joints' q indices). The generic human's
-reference and ``sigma`` are its pose prior learned from motion capture (the joints' mean and
-standard deviation, :func:`posture_row`); other figures get the rest pose
-and one weak ``sigma``. With a large ``sigma``
+per configuration entry (``(nq,)``, read at the joints' q indices). The generic human gets
+its pose prior learned from motion capture instead (:class:`PosePrior`, :func:`posture_row`):
+the joints that move in the clips are held by their joint Gaussian (mean and covariance),
+the others by their mean and standard deviation; other figures get the rest pose and one
+weak ``sigma``. With a large ``sigma``
 (default 1 rad) it barely moves well-observed joints (the bias on a joint is about
 ``(q - q_ref) / (sigma^2 H_data)``), but it gives the directions the data cannot see
 (the twist of a limb whose keypoints are collinear, redundant rotations of zero-length
@@ -22,7 +23,7 @@ import numpy as np
 from .._resources import model_path
 from .base import RowBlock, RowKind, State
 
-__all__ = ["Posture", "pose_prior", "posture_row", "rest_pose"]
+__all__ = ["PosePrior", "Posture", "pose_prior", "pose_prior_covariance", "posture_row", "rest_pose"]
 
 
 class Posture(RowKind):
@@ -52,11 +53,64 @@ class Posture(RowKind):
         return RowBlock(self.frames[:, None], r, J, self.cols, self.name, diagonal=True)
 
 
+class PosePrior(Posture):
+    """The generic human's pose prior: :class:`Posture` (each joint to its mean, ``sigma``
+    its standard deviation times ``scale``), except the joints ``qcorr`` (q indices), whose
+    rows are ``z = A (q[qcorr] - mean)`` with ``A^T A = cov^-1 / scale^2``: ``|z|`` is their
+    Mahalanobis distance ``m`` from the mean in units of ``scale``, and a frame pays
+    ``0.5 m^2`` up to ``m = huber``, ``huber m - 0.5 huber^2`` beyond (``None``: always
+    quadratic): a pose far outside the prior's clips is pulled with a bounded force, so
+    motion they do not cover (a dancer's raised arms) is not forced into theirs. The rows of
+    every correlated joint are written (a joint that is not ``active`` enters at its current
+    value, i.e. the conditional Gaussian of the active ones); the Jacobian covers the active
+    columns.
+    """
+
+    def __init__(self, figure, n_frames, q_ref, sigma, qcorr, cov, scale, active=None, huber=None):
+        super().__init__(figure, n_frames, q_ref, sigma, active)
+        self.huber = None if huber is None else float(huber)
+        self.qcorr = np.asarray(qcorr, int)
+        self.mean_corr = np.asarray(q_ref, float)[self.qcorr]
+        L = np.linalg.cholesky(np.linalg.inv(np.asarray(cov, float)))  # cov^-1 = L L^T
+        self.A = L.T / float(scale)
+        pos = {int(q): k for k, q in enumerate(self.qidx)}
+        corr = set(self.qcorr.tolist())
+        self.diag = np.array([k for k, q in enumerate(self.qidx) if int(q) not in corr], int)
+        # columns of the active correlated joints: (k in qcorr, k in cols)
+        self._corr_in = np.array([i for i, q in enumerate(self.qcorr) if int(q) in pos], int)
+        self._corr_col = np.array([pos[int(self.qcorr[i])] for i in self._corr_in], int)
+
+    def evaluate(self, state: State, jacobian: bool = True) -> RowBlock:
+        Q = state.Q
+        N, c, nd = len(self.frames), len(self.cols), len(self.diag)
+        rd = (Q[:, self.qidx[self.diag]] - self.q_ref[self.diag]) * self.inv_sigma[self.diag]
+        rc = (Q[:, self.qcorr] - self.mean_corr) @ self.A.T
+        k, cv = self.huber, None
+        if k is not None:  # Huber on the frame's distance m, reweighted rows (as the measurement's)
+            m = np.linalg.norm(rc, axis=1)
+            sw = np.sqrt(np.where(m <= k, 1.0, k / np.maximum(m, 1e-300)))
+            cv = float(np.where(m <= k, 0.5 * m**2, k * m - 0.5 * k**2).sum() + 0.5 * (rd**2).sum())
+            rc = rc * sw[:, None]
+        r = np.concatenate([rd, rc], axis=1)
+        J = None
+        if jacobian:
+            Jf = np.zeros((nd + len(self.qcorr), c))
+            Jf[np.arange(nd), self.diag] = self.inv_sigma[self.diag]
+            Jf[np.ix_(nd + np.arange(len(self.qcorr)), self._corr_col)] = self.A[:, self._corr_in]
+            if k is None:
+                J = np.broadcast_to(Jf, (N, 1) + Jf.shape)
+            else:
+                w_rows = np.ones((N, len(Jf)))
+                w_rows[:, nd:] = sw[:, None]
+                J = (w_rows[:, :, None] * Jf)[:, None]
+        return RowBlock(self.frames[:, None], r, J, self.cols, self.name, cost_value=cv)
+
+
 def pose_prior(figure, rest: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(q_ref (nq,), sigma (nq,)): the generic human's joint means and standard deviations
     over motion capture (``models/priors/human_pose.json``, made by
     ``tools/fit_pose_prior.py``); entries the file does not name keep ``rest`` and 1 rad."""
-    table = _pose_prior_table()
+    table = _pose_prior_file()["joints"]
     m = figure.model
     ref, sigma = np.array(rest, float), np.ones(figure.nq)
     for jid in range(1, m.njoints):
@@ -65,19 +119,33 @@ def pose_prior(figure, rest: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return ref, sigma
 
 
+def pose_prior_covariance(figure) -> tuple[np.ndarray, np.ndarray]:
+    """(q indices (d,), covariance (d, d)) of the joints that move in the pose prior's clips
+    (``models/priors/human_pose.json``, ``"correlated"``; radians squared)."""
+    names, cov = _pose_prior_file()["correlated"]
+    m = figure.model
+    jid = {m.names[j]: j for j in range(1, m.njoints)}
+    return np.array([m.idx_qs[jid[n]] for n in names], int), cov
+
+
 @functools.lru_cache(maxsize=1)
-def _pose_prior_table() -> dict:
-    path = model_path("priors", "human_pose.json")
-    return {k: (float(v[0]), float(v[1])) for k, v in json.loads(path.read_text())["joints"].items()}
+def _pose_prior_file() -> dict:
+    data = json.loads(model_path("priors", "human_pose.json").read_text())
+    corr = data["correlated"]
+    return {"joints": {k: (float(v[0]), float(v[1])) for k, v in data["joints"].items()},
+            "correlated": (list(corr["joints"]), np.array(corr["covariance"], float))}
 
 
 def posture_row(figure, n_frames: int, weights, active=None) -> Posture | None:
     """The posture prior of ``figure`` (``weights`` a :class:`pinrecon.problem.Weights`): the
-    generic human's pose prior learned from motion capture (``weights.pose_prior``,
-    :func:`pose_prior`), else the rest pose with ``weights.sigma_posture`` (``None``: no row)."""
+    generic human's pose prior learned from motion capture (:class:`PosePrior` at the scale
+    ``weights.pose_prior``, :func:`pose_prior`, :func:`pose_prior_covariance`), else the rest
+    pose with ``weights.sigma_posture`` (``None``: no row)."""
     if weights.pose_prior is not None and figure.meta.get("generic") == "human":
         ref, sigma = pose_prior(figure, rest_pose(figure))
-        return Posture(figure, n_frames, ref, sigma * weights.pose_prior, active)
+        qcorr, cov = pose_prior_covariance(figure)
+        s = weights.pose_prior
+        return PosePrior(figure, n_frames, ref, sigma * s, qcorr, cov, s, active, weights.pose_prior_huber)
     if weights.sigma_posture is None:
         return None
     return Posture(figure, n_frames, rest_pose(figure), weights.sigma_posture, active)

@@ -4,8 +4,9 @@
 ==============  ============================================================
 name            start
 ==============  ============================================================
-``"auto"``      ``"hypotheses"`` for one camera's tracks without keyframes, else
-                ``"keyframes"`` when there are keyframes, else ``"rest"``
+``"auto"``      ``"hypotheses"`` for one camera's tracks without keyframes or with
+                sparse ones (:func:`sparse_keyframes`), else ``"keyframes"`` when
+                there are keyframes, else ``"rest"``
 ``"rest"``      rest pose placed on the tracks, root fitted (:mod:`.rest`)
 ``"keyframes"`` poses at the keyframes, interpolated, placed on the tracks
 ``"planarity"`` Hoffman-Flinchbaugh planarity seed (:mod:`.planarity`)
@@ -45,20 +46,20 @@ def sparse_keyframes(problem: ReconstructionProblem, max_gap_s: float = 1.0) -> 
 
 
 def auto_start(problem: ReconstructionProblem) -> np.ndarray:
-    """The multi-hypothesis start for one camera's 2D tracks without keyframes; the
-    keyframe start with keyframes; the rest-pose start otherwise.
+    """The multi-hypothesis start for one camera's 2D tracks without keyframes or with
+    sparse ones (a stretch of more than a second without any, :func:`sparse_keyframes`);
+    the keyframe start with denser keyframes; the rest-pose start otherwise.
 
     Measured in ``bench/bench_real.py`` (the calibrated human on detector-like tracks,
     mean of two views): without keyframes the multi-hypothesis start took the walk from
     204 to 65 mm PA-MPJPE and 40 to 7 % flipped limbs, the run from 216 to 166 mm and 48
-    to 23 % (the dance: no change). With keyframes on the first and last frame only
-    (sparse) it did worse than the keyframe start on all three clips (walk 76 against
-    50 mm), so sparse keyframes keep the keyframe start; ``seed="hypotheses"`` asks for
-    it (with keyframes it also weighs the planarity seed: the lab case's walk went from
-    38 to 1.1 % flips)."""
+    to 23 % (the dance: no change). With keyframes on the first and last frame only it
+    first did worse than the keyframe start (walk 76 against 50 mm); with the human's
+    correlated pose prior it does better on all three clips (walk 22.6 against 23.1 mm,
+    run 31.2 / 4.2 % against 32.9 / 5.3 %, dance 130 against 159 mm), and on the lab case
+    it picks the planarity seed (walk 38 -> 1.1 % flips)."""
     one_camera = len(getattr(problem, "views", None) or [None]) == 1  # several cameras see depth
-    no_keyframes = problem.keyframes is None or not len(problem.keyframes)
-    if problem.measurement is not None and problem.tracks is not None and one_camera and no_keyframes:
+    if problem.measurement is not None and problem.tracks is not None and one_camera and sparse_keyframes(problem):
         return hypotheses_start(problem)
     if problem.keyframes is not None and len(problem.keyframes):
         return keyframe_start(problem)

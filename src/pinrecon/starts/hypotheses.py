@@ -64,7 +64,7 @@ import numpy as np
 from scipy.ndimage import minimum_filter1d
 
 from ..problem import ReconstructionProblem, posture_row, rest_pose
-from ..rows import JointLimits, Points3D, Posture
+from ..rows import JointLimits, Points3D, Posture, State
 from ..solver import SolverOptions, solve
 from .keyframes import keyframe_start
 from .limbs import (
@@ -344,6 +344,7 @@ def _score_states(problem, chains, frames, Q_base, D, options, sigma_pull_m, sig
     fwd = np.asarray(problem.camera.R, float)[2]
     limits = JointLimits(fig, F, w.sigma_limits)
     posture = _posture(fig, F, w, active)
+    no_frames = np.zeros(0, int)  # the posture row reads Q only
     unary = [np.zeros((F, c.n_states)) for c in chains]
     dirs = [np.zeros((F, c.n_states, c.n_segments, 3)) for c in chains]
     for h in range(H):
@@ -351,7 +352,6 @@ def _score_states(problem, chains, frames, Q_base, D, options, sigma_pull_m, sig
         P = fig.keypoints(Q)
         st = ReconstructionProblem(fig, F, [limits, posture]).state(Q, jacobian=False)
         r_lim = limits.evaluate(st, False).r
-        r_post = posture.evaluate(st, False).r
         col = 0
         for ci, c in enumerate(chains):
             M = c.n_segments
@@ -363,7 +363,11 @@ def _score_states(problem, chains, frames, Q_base, D, options, sigma_pull_m, sig
             lat = miss - depth[..., None] * fwd
             cost = 0.5 * (np.sum(lat ** 2, axis=(1, 2)) / sigma_lat_m ** 2 + np.sum(depth ** 2, axis=1) / sigma_pull_m ** 2)
             cost += 0.5 * np.sum(r_lim[:, c.v_mask[limits.cols]] ** 2, axis=1)
-            cost += 0.5 * np.sum(r_post[:, c.v_mask[posture.cols]] ** 2, axis=1)
+            # the posture prior of this chain's state with the other chains at the base: the
+            # generic human's prior couples joints, so its cost is not a sum over chains
+            Qm = Qb.copy()
+            Qm[:, qidx[ci]] = Q[:, qidx[ci]]
+            cost += 0.5 * np.sum(posture.evaluate(State(fig, Qm, no_frames, False), False).r ** 2, axis=1)
             kf_rel = K_kf[:, c.kp[1:]] - K_kf[:, c.kp[:1]]
             e = np.where(np.isfinite(kf_rel), P[:, c.kp[1:]] - P[:, c.kp[:1]] - np.nan_to_num(kf_rel), 0.0)
             has = np.isfinite(sig_kf)
