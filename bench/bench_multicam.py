@@ -8,9 +8,9 @@ it), 1 px noise, no keyframes.
 * **pinrecon**: ``reconstruct(figure, [tracks...], [cameras...])``: every camera's
   tracks are measurement rows through their own camera in the one batch solve, with
   joint limits and smoothing. Figure: the clip's own skeleton (22 body points tracked),
-  or ``Figure.human()`` (other proportions, uncalibrated: the solver globals that would
-  fit its proportions are not used here) with 12 COCO-17 points tracked at the clip's
-  joints.
+  or ``Figure.human()`` (other proportions: its segment lengths calibrated in the same
+  solve, the default with several cameras, and uncalibrated) with 12 COCO-17 points
+  tracked at the clip's joints.
 * **two-stage** (what a triangulate-then-filter pipeline such as Pose2Sim does): each
   point in each frame triangulated by DLT (written here, in pixels, from the cameras'
   3 x 4 projection matrices) from the cameras that see it, points seen by fewer than two
@@ -140,7 +140,7 @@ def point_flips(fig, P_est, P_true, names, cam):
 
 
 # ----------------------------------------------------------------------------- cases
-def case(label, fig, names, truth, q_true, cams, tracks, fps, rows, *, lossy=None):
+def case(label, fig, names, truth, q_true, cams, tracks, fps, rows, *, lossy=None, **kw):
     """pinrecon and the two-stage pipeline on one setting; ``lossy``: the index of the
     camera with missing points (scored apart). Flips from ``q_true`` when given, else
     from the points."""
@@ -148,7 +148,7 @@ def case(label, fig, names, truth, q_true, cams, tracks, fps, rows, *, lossy=Non
     miss = ~tracks[lossy].observed if lossy is not None else None
     flips_q = q_true is not None
     t0 = time.perf_counter()
-    res = pr.reconstruct(fig, tracks, cams)
+    res = pr.reconstruct(fig, tracks, cams, **kw)
     dt = time.perf_counter() - t0
     e = 1000 * np.linalg.norm(res.keypoints3d[:, idx] - truth, axis=-1)
     if flips_q:
@@ -209,8 +209,10 @@ def main():
     rng = np.random.default_rng(5)
     htracks = [pr.Tracks(c.project(htruth) + rng.normal(0.0, 1.0, htruth.shape[:2] + (2,)), hnames, fps)
                for c in cams]
-    case("Figure.human(), 12 COCO-17 points, 3 cameras, uncalibrated", human, hnames, htruth, None, cams, htracks,
-         fps, rows)
+    case("Figure.human(), 12 COCO-17 points, 3 cameras, lengths calibrated (the default)", human, hnames, htruth,
+         None, cams, htracks, fps, rows)
+    case("Figure.human(), 12 COCO-17 points, 3 cameras, uncalibrated (calibrate='none')", human, hnames, htruth,
+         None, cams, htracks, fps, rows, calibrate="none")
 
     print("\n| walk, 343 frames at 120 fps, 1 px noise, no keyframes | method | MPJPE (mm) | "
           "MPJPE where camera 2 misses the point (mm) | limbs with flipped depth sign | notes |")

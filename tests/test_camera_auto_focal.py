@@ -3,10 +3,12 @@ over the focal length, its interval, and the warning when the tracks do not fix 
 
 Ground truth: a cost profile written out here as a parabola in log f (its 95 % interval in
 closed form), and the true focal length of the camera that made the synthetic tracks.
-Measured on the CMU walk (bench/bench_camera_auto.py): from the default and from starts
-30 % off, the solve keeps the focal length near where it started and its cost profile is
-flat (it moves by 10-35 over a factor 3 in f and jumps between branches of poses), so the
-report must say "not determined" rather than claim a value.
+Measured on the CMU walk (bench/bench_camera_auto.py): with the human's correlated pose
+prior the cost profile is a valley (about 18 nats deep at +-30 %) near the true focal length,
+but Gauss-Newton stops part-way down it; the solve is carried to its bottom
+(``settle_focal``): 1106 / 1106 / 1041 px from the default and from starts 30 % off. On the
+synthetic walk below it ends near 900 px from every start (18 % short, the lengths
+calibrated with it), and the report says "not determined" rather than claim a value.
 """
 
 from __future__ import annotations
@@ -75,11 +77,12 @@ def short_walk():
 @pytest.mark.parametrize("k", [0.7, 1.3])
 def test_focal_from_a_start_30_percent_off_is_found_or_said_to_be_unknown(short_walk, k):
     """The issue's target is recovery within 10 % of the true focal length from a start
-    30 % off. Measured here (and on the CMU walk) it is not recovered: from 770 px the
-    solve ends near 590 px, from 1430 px near 1430 px, with the exact figure and 1 px
-    noise. The contract tested: the fitted focal is within 10 % of the truth, or the
-    report says it is not determined (with a FocalLengthWarning), and then its interval
-    of what is not ruled out contains the truth."""
+    30 % off. Measured here it is not: from 770 px and from 1430 px the solve ends near
+    900 px, with the exact figure and 1 px noise. The contract tested: the solve ends at
+    the bottom of its own profile (no profiled focal length more than 0.5 nats lower),
+    and the fitted focal is within 10 % of the truth, or the report says it is not
+    determined (with a FocalLengthWarning), and then its interval of what is not ruled
+    out contains the truth."""
     fov = float(np.degrees(2.0 * np.arctan(SIZE[0] / 2.0 / (k * F_TRUE))))
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -87,6 +90,8 @@ def test_focal_from_a_start_30_percent_off_is_found_or_said_to_be_unknown(short_
     rep = res.calibration["camera_auto"]["focal"]
     fitted = res.calibration["cameras"]["camera1"]["fitted"]
     assert rep["focal_px"] == pytest.approx(fitted) and rep["start_px"] == pytest.approx(k * F_TRUE)
+    cost_at = dict((round(f, 6), c) for f, c in rep["profile"])
+    assert min(cost_at.values()) >= cost_at[round(fitted, 6)] - 0.5  # settled at the profile's bottom
     warned = [w for w in caught if issubclass(w.category, FocalLengthWarning)]
     if abs(fitted / F_TRUE - 1.0) <= 0.10:
         return

@@ -74,11 +74,10 @@ def has_point_keyframes(keyframes) -> bool:
     return any(getattr(k, "points", None) for k in keyframes or ())
 
 
-def default_calibrate(figure, keyframes=None, lengths_from_tracks: bool = False) -> str:
-    """The default of ``calibrate``: ``"lengths"`` for the generic human
-    (:meth:`Figure.human <pinrecon.figure.Figure.human>` marks it with
-    ``meta["generic"] == "human"``; a figure already calibrated carries
-    ``meta["proportions"]``) when there is 3D information, a point keyframe, or when the
+def default_calibrate(figure, keyframes=None, lengths_from_tracks: bool = False, several_views: bool = False) -> str:
+    """The default of ``calibrate``: ``"lengths"`` for the generic human (``meta["generic"] ==
+    "human"``; a figure already calibrated carries ``meta["proportions"]``) when there is 3D
+    information (a point keyframe, or several given cameras, which see depth), or when the
     limb lengths are measured from the tracks first (``lengths_from_tracks``: one given
     camera, one batch solve, see :func:`pinrecon.reconstruct`); ``"none"`` otherwise, and
     for any other figure (a BVH's own skeleton, a robot, a calibrated figure saved for
@@ -89,7 +88,7 @@ def default_calibrate(figure, keyframes=None, lengths_from_tracks: bool = False)
     meta = getattr(figure, "meta", None) or {}
     if meta.get("generic") != "human" or "proportions" in meta:
         return "none"
-    if has_point_keyframes(keyframes):
+    if has_point_keyframes(keyframes) or several_views:
         return "lengths"
     return "lengths" if lengths_from_tracks else "none"
 

@@ -41,7 +41,7 @@ from .starts.camera_auto import (
     AutoCamera,
     auto_camera,
     camera_scale_from_keyframes,
-    check_focal,
+    settle_focal,
     image_size_of,
 )
 from .tracks import Keyframe, Keyframes, Markers, Tracks
@@ -113,7 +113,8 @@ def _camera_and_mode(figure, tracks, camera, keyframes, calibrate, image_size=No
     """
     auto = AutoCamera.parse(camera, image_size=image_size) if isinstance(camera, (str, AutoCamera)) else None
     one_view = _lengths_measurable(auto and auto.projection) and not isinstance(tracks, (list, tuple))
-    mode = default_calibrate(figure, keyframes, lengths_from_tracks and one_view) if calibrate is None else calibrate
+    several = auto is None and isinstance(tracks, (list, tuple)) and len(tracks) > 1
+    mode = default_calibrate(figure, keyframes, lengths_from_tracks and one_view, several) if calibrate is None else calibrate
     if isinstance(camera, str) and auto is None:
         raise InputError(f"a camera, a list of cameras or 'auto', got {camera!r}", field="camera")
     if auto is not None:
@@ -238,8 +239,8 @@ def reconstruct(
         ``"lengths+camera"``: unknowns of the same batch solve, see
         :func:`pinrecon.problem.make_problem` and ``docs/globals.md``. Default
         (``None``): ``"lengths"`` for the generic ``Figure.human()`` with 3D point
-        keyframes or, without them, one given camera (the lengths then start at what the
-        tracks measure, ``lengths_from_tracks``); ``"none"`` otherwise and for any other
+        keyframes or several given cameras or, without them, one given camera (the lengths
+        then start at what the tracks measure, ``lengths_from_tracks``); ``"none"`` otherwise and for any other
         figure (:func:`pinrecon.problem.default_calibrate`); with the auto camera, plus
         ``"camera"`` (a perspective auto camera measures the lengths from the tracks too:
         its start places the figure by its size, so they come out relative to it).
@@ -266,7 +267,9 @@ def reconstruct(
     problem = make_problem(figure, tracks, camera, keyframes, fps_out=fps_out, weights=weights, keypoints=keypoints,
                            calibrate=mode)
     span = windowed_length(problem.n_frames, window if window is not None or floor is None and contact is None else 0)
-    if span and calibrate is None and mode in ("lengths", "lengths+camera") and default_calibrate(figure, keyframes) == "none":
+    several = isinstance(tracks, (list, tuple)) and len(tracks) > 1
+    if span and calibrate is None and mode in ("lengths", "lengths+camera") and \
+            default_calibrate(figure, keyframes, several_views=several) == "none":
         # windows measure no lengths: the default without 3D information stays the figure's own
         mode = "camera" if auto is not None else "none"
         problem = make_problem(figure, tracks, camera, keyframes, fps_out=fps_out, weights=weights,
@@ -282,7 +285,7 @@ def reconstruct(
         problem, q0 = _lengths_from_tracks(problem, q0, _start_name(init, seed), inputs)
     res = solve(problem, q0, options, callback, active=problem.active, g0=problem.g0)
     res = fault_stage(problem, res, options, callback)  # left/right swaps repaired (warm re-solve), outliers
-    auto = check_focal(problem, res, auto, options=options)  # how well the tracks fix an auto camera's focal
+    res, auto = settle_focal(problem, res, auto, options=options)  # an auto camera's focal: down its valley
     if floor is None and contact is None:
         return _package(problem, res, auto)
     problem, res, feet = solve_on_the_floor(
