@@ -1,0 +1,84 @@
+"""The README's "Your own video": a real detector folder (Pose2Sim's balancing trial, camera 1,
+OpenPose BODY_25B, 100 frames at 60 fps) to a BVH and pictures with no camera file, by the
+three commands the README gives, run here as a user runs them.
+
+Ground truth: Pose2Sim's own triangulation of the same 100 frames from all four calibrated
+cameras (``S00_P00_T01_BalancingTrial_0-100.trc``, read here by hand), against which the
+one-camera reconstruction is scored after a per-frame similarity alignment (PA-MPJPE)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import REPO
+
+import pinrecon as pr
+from pinrecon.cli import main
+from pinrecon.io.bvh import load_bvh
+
+FOLDER = REPO / "examples" / "data" / "pose2sim_balancing"
+TRACKS = FOLDER / "cam01_json"
+TRC = FOLDER / "S00_P00_T01_BalancingTrial_0-100.trc"
+COCO12_TRC = {"left_shoulder": "LShoulder", "right_shoulder": "RShoulder", "left_elbow": "LElbow",
+              "right_elbow": "RElbow", "left_wrist": "LWrist", "right_wrist": "RWrist", "left_hip": "LHip",
+              "right_hip": "RHip", "left_knee": "LKnee", "right_knee": "RKnee", "left_ankle": "LAnkle",
+              "right_ankle": "RAnkle"}
+
+
+def _trc(path):
+    """(T, M, 3) marker positions and their names from a TRC file (tab-separated)."""
+    rows = path.read_text().splitlines()
+    names = [n for n in rows[3].split("\t")[2:] if n]
+    T = int(rows[2].split("\t")[2])
+    X = np.array([r.split("\t")[2 : 2 + 3 * len(names)] for r in rows[5 : 5 + T]], float)
+    return X.reshape(T, len(names), 3), names
+
+
+def _pa_mpjpe_mm(P, G):
+    """Mean per-joint error after the best similarity per frame (Umeyama), millimetres."""
+    err = []
+    for p, g in zip(P, G):
+        X, Y = p - p.mean(0), g - g.mean(0)
+        U, S, Vt = np.linalg.svd(Y.T @ X)
+        D = np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt))])
+        R = U @ D @ Vt
+        s = np.trace(np.diag(S) @ D) / (X * X).sum()
+        err.append(np.linalg.norm(s * X @ R.T - Y, axis=-1).mean())
+    return 1000 * float(np.mean(err))
+
+
+@pytest.fixture(scope="module")
+def your_video(tmp_path_factory):
+    out = tmp_path_factory.mktemp("balance")
+    track_args = ["--tracks", str(TRACKS), "--fps", "60"]
+    assert main(["reconstruct", "--figure", "human", *track_args, "--camera", "auto", "--image-size", "1088", "1920",
+                 "--save-camera", str(out / "camera.json"), "--out", str(out / "result.npz"), "--quiet"]) == 0
+    assert main(["export", str(out / "result.npz"), "--bvh", str(out / "motion.bvh")]) == 0
+    assert main(["plot", str(out / "result.npz"), *track_args, "--no-animation", "--out", str(out)]) == 0
+    return out
+
+
+def test_three_commands_write_a_bvh_and_pictures(your_video):
+    for name in ("result.npz", "camera.json", "motion.bvh", "reprojection.png", "stick_strip.png", "joint_angles.png"):
+        assert (your_video / name).is_file() and (your_video / name).stat().st_size > 100, name
+    res = pr.load_result(your_video / "result.npz")
+    assert res.q.shape[0] == 100
+    motion = load_bvh(your_video / "motion.bvh", 0.01)
+    assert motion.q.shape[0] == 100
+    cam = pr.load_camera(your_video / "camera.json")
+    assert cam.K[0, 2] == pytest.approx(544.0) and cam.K[1, 2] == pytest.approx(960.0)  # the image centre
+
+
+def test_against_pose2sims_four_camera_triangulation(your_video):
+    """Measured: 141 mm PA-MPJPE with the default (the pose prior learned from walking,
+    running and jumping: balancing on one leg is not among its poses), 107 mm with
+    ``--pose-prior none``; mean reprojection 7.5 px of a 1920 px image. The bound keeps
+    what there is; the gap to the lab (10 mm) is the point of the test's numbers."""
+    res = pr.load_result(your_video / "result.npz")
+    X, names = _trc(TRC)
+    G = X[:, [names.index(v) for v in COCO12_TRC.values()]]
+    P = res.keypoints3d[:, res.figure.keypoint_index(list(COCO12_TRC))]
+    assert len(P) == len(G) == 100
+    pa = _pa_mpjpe_mm(P, G)
+    assert pa < 160.0, pa
+    assert float(np.nanmean(res.reprojection_error_px)) < 10.0
