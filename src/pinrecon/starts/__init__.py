@@ -55,9 +55,9 @@ def auto_start(problem: ReconstructionProblem) -> np.ndarray:
     204 to 65 mm PA-MPJPE and 40 to 7 % flipped limbs, the run from 216 to 166 mm and 48
     to 23 % (the dance: no change). With keyframes on the first and last frame only it
     first did worse than the keyframe start (walk 76 against 50 mm); with the human's
-    correlated pose prior it does better on all three clips (walk 22.6 against 23.1 mm,
-    run 31.2 / 4.2 % against 32.9 / 5.3 %, dance 130 against 159 mm), and on the lab case
-    it picks the planarity seed (walk 38 -> 1.1 % flips)."""
+    correlated pose prior it is as good on the walk (23.4 / 6.0 % against 23.1 / 5.9 %) and
+    the run (31.0 / 4.1 % against 31.0 / 4.2 %) and better on the dance (116 against 147
+    mm), and on the lab case it picks the planarity seed (walk 23.3 -> 1.1 % flips)."""
     one_camera = len(getattr(problem, "views", None) or [None]) == 1  # several cameras see depth
     if problem.measurement is not None and problem.tracks is not None and one_camera and sparse_keyframes(problem):
         return hypotheses_start(problem)
