@@ -4,7 +4,8 @@ the calibrated figure in the result, its NPZ and BVH, and the CLI.
 Ground truth is computed here from the CMU clip itself, independently of the code under
 test: the clip's joints (the 12 COCO-17 body points' CMU twins) give the true positions
 and the true segment lengths (mean distance between a segment's two points); MPJPE and
-PA-MPJPE (per-frame similarity alignment, Umeyama's closed form written out below) are
+PA-MPJPE (per-frame similarity alignment, Umeyama's closed form written out in
+``tests/alignment.py``) are
 computed from positions only.
 """
 
@@ -15,6 +16,7 @@ import warnings
 
 import numpy as np
 import pytest
+from alignment import pa_mpjpe_mm
 
 import pinrecon as pr
 from pinrecon.cli import main
@@ -37,18 +39,6 @@ def _lengths(P, names):
             for s, pairs in SEGMENTS.items()}
 
 
-def _pa_mpjpe_mm(P, G):
-    err = []
-    for t in range(len(P)):
-        X, Y = P[t] - P[t].mean(0), G[t] - G[t].mean(0)
-        U, S, Vt = np.linalg.svd(Y.T @ X)
-        D = np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt))])
-        R = U @ D @ Vt
-        s = np.trace(np.diag(S) @ D) / (X * X).sum()
-        err.append(np.linalg.norm(s * X @ R.T - Y, axis=-1).mean())
-    return 1000 * float(np.mean(err))
-
-
 def _run(case, calibrate, focal_start=1.0):
     cam, tracks, P, kf = case
     K = cam.K.copy()
@@ -61,7 +51,7 @@ def _run(case, calibrate, focal_start=1.0):
     est, true = _lengths(Pe, names), _lengths(P, names)
     return res, {
         "mpjpe": 1000 * float(np.linalg.norm(Pe - P, axis=-1).mean()),
-        "pa": _pa_mpjpe_mm(Pe, P),
+        "pa": pa_mpjpe_mm(Pe, P),
         "seg": {s: est[s] / true[s] - 1.0 for s in SEGMENTS},
     }
 

@@ -2,8 +2,8 @@
 
 Ground truth: cameras built here with ``Perspective.look_at`` / ``Orthographic.from_view``
 and points projected through them; the field-of-view formula written out; accuracy of
-the end-to-end runs from the CMU clip's own joints (PA-MPJPE as in
-``tests/test_calibration.py``).
+the end-to-end runs from the CMU clip's own joints (PA-MPJPE written out in
+``tests/alignment.py``).
 """
 
 from __future__ import annotations
@@ -12,6 +12,7 @@ import warnings
 
 import numpy as np
 import pytest
+from alignment import pa_mpjpe_mm
 
 import pinrecon as pr
 from pinrecon.cli import main
@@ -25,17 +26,6 @@ from pinrecon.starts.camera_auto import (
 from pinrecon.tracks import keyframes_from_points
 
 SIZE = (1280.0, 720.0)
-
-
-def _pa_mpjpe_mm(P, G):
-    err = []
-    for t in range(len(P)):
-        X, Y = P[t] - P[t].mean(0), G[t] - G[t].mean(0)
-        U, S, Vt = np.linalg.svd(Y.T @ X)
-        D = np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt))])
-        R = U @ D @ Vt
-        err.append(np.linalg.norm(np.trace(np.diag(S) @ D) / (X * X).sum() * X @ R.T - Y, axis=-1).mean())
-    return 1000 * float(np.mean(err))
 
 
 def _cloud(n=40, seed=0):
@@ -107,7 +97,7 @@ def test_focal_length_and_scale_start_from_keyframes():
 
 
 def _pa(res, tracks, P):
-    return _pa_mpjpe_mm(res.keypoints3d[:, res.figure.keypoint_index(list(tracks.names))], P)
+    return pa_mpjpe_mm(res.keypoints3d[:, res.figure.keypoint_index(list(tracks.names))], P)
 
 
 def test_auto_camera_against_the_true_camera(coco_walk):

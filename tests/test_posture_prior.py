@@ -13,8 +13,8 @@ import pytest
 import pinrecon as pr
 from pinrecon._resources import model_path
 from pinrecon.problem import Weights, posture_row, rest_pose
-from pinrecon.rows.posture import pose_prior
 from pinrecon.rows import State
+from pinrecon.rows.posture import pose_prior
 from pinrecon.synthetic import bundled_motion
 
 

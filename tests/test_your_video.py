@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from alignment import pa_mpjpe_mm
 from conftest import REPO
 
 import pinrecon as pr
@@ -32,19 +33,6 @@ def _trc(path):
     T = int(rows[2].split("\t")[2])
     X = np.array([r.split("\t")[2 : 2 + 3 * len(names)] for r in rows[5 : 5 + T]], float)
     return X.reshape(T, len(names), 3), names
-
-
-def _pa_mpjpe_mm(P, G):
-    """Mean per-joint error after the best similarity per frame (Umeyama), millimetres."""
-    err = []
-    for p, g in zip(P, G):
-        X, Y = p - p.mean(0), g - g.mean(0)
-        U, S, Vt = np.linalg.svd(Y.T @ X)
-        D = np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt))])
-        R = U @ D @ Vt
-        s = np.trace(np.diag(S) @ D) / (X * X).sum()
-        err.append(np.linalg.norm(s * X @ R.T - Y, axis=-1).mean())
-    return 1000 * float(np.mean(err))
 
 
 @pytest.fixture(scope="module")
@@ -79,6 +67,6 @@ def test_against_pose2sims_four_camera_triangulation(your_video):
     G = X[:, [names.index(v) for v in COCO12_TRC.values()]]
     P = res.keypoints3d[:, res.figure.keypoint_index(list(COCO12_TRC))]
     assert len(P) == len(G) == 100
-    pa = _pa_mpjpe_mm(P, G)
+    pa = pa_mpjpe_mm(P, G)
     assert pa < 160.0, pa
     assert float(np.nanmean(res.reprojection_error_px)) < 10.0

@@ -41,8 +41,8 @@ from .starts.camera_auto import (
     AutoCamera,
     auto_camera,
     camera_scale_from_keyframes,
-    settle_focal,
     image_size_of,
+    settle_focal,
 )
 from .tracks import Keyframe, Keyframes, Markers, Tracks
 from .windowed import solve_windowed, windowed_length
@@ -101,6 +101,11 @@ def _lengths_measurable(auto_projection: str | None) -> bool:
     return auto_projection is None or auto_projection == "perspective"
 
 
+def _several_views(tracks) -> bool:
+    """Whether ``tracks`` are several cameras' (a list of two or more): they see depth."""
+    return isinstance(tracks, (list, tuple)) and len(tracks) > 1
+
+
 def _camera_and_mode(figure, tracks, camera, keyframes, calibrate, image_size=None, lengths_from_tracks=False):
     """The camera(s) to build the problem with and the calibration mode.
 
@@ -113,7 +118,7 @@ def _camera_and_mode(figure, tracks, camera, keyframes, calibrate, image_size=No
     """
     auto = AutoCamera.parse(camera, image_size=image_size) if isinstance(camera, (str, AutoCamera)) else None
     one_view = _lengths_measurable(auto and auto.projection) and not isinstance(tracks, (list, tuple))
-    several = auto is None and isinstance(tracks, (list, tuple)) and len(tracks) > 1
+    several = _several_views(tracks)  # with the auto camera: refused just below
     mode = default_calibrate(figure, keyframes, lengths_from_tracks and one_view, several) if calibrate is None else calibrate
     if isinstance(camera, str) and auto is None:
         raise InputError(f"a camera, a list of cameras or 'auto', got {camera!r}", field="camera")
@@ -267,9 +272,8 @@ def reconstruct(
     problem = make_problem(figure, tracks, camera, keyframes, fps_out=fps_out, weights=weights, keypoints=keypoints,
                            calibrate=mode)
     span = windowed_length(problem.n_frames, window if window is not None or floor is None and contact is None else 0)
-    several = isinstance(tracks, (list, tuple)) and len(tracks) > 1
     if span and calibrate is None and mode in ("lengths", "lengths+camera") and \
-            default_calibrate(figure, keyframes, several_views=several) == "none":
+            default_calibrate(figure, keyframes, several_views=_several_views(tracks)) == "none":
         # windows measure no lengths: the default without 3D information stays the figure's own
         mode = "camera" if auto is not None else "none"
         problem = make_problem(figure, tracks, camera, keyframes, fps_out=fps_out, weights=weights,

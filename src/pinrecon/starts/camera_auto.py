@@ -59,12 +59,12 @@ __all__ = [
     "camera_from_keyframes",
     "camera_scale_from_keyframes",
     "check_focal",
-    "settle_focal",
     "focal_profile",
     "image_size_of",
     "keyframe_correspondences",
     "orthographic_from_keyframes",
     "profile_interval",
+    "settle_focal",
     "stretch_depth",
 ]
 
@@ -545,17 +545,9 @@ def check_focal(problem, res, auto: dict | None, **kw) -> dict | None:
     """The auto camera's description ``auto`` with ``"focal"``, the :class:`FocalReport`
     of :func:`focal_profile` as plain data, when the auto camera is perspective and its
     focal length was a global of the solve ``res``; warns
-    (:class:`FocalLengthWarning`) when the tracks do not determine it."""
-    if not auto or auto.get("projection") != "perspective":
-        return auto
-    rep = focal_profile(problem, res, **kw)
-    if rep is None:
-        return auto
-    if not rep.determined:
-        import warnings
-
-        warnings.warn(rep.message(), FocalLengthWarning, stacklevel=3)
-    return {**auto, "focal": rep.to_dict()}
+    (:class:`FocalLengthWarning`) when the tracks do not determine it. The solve is left
+    where it is (:func:`settle_focal` with no round; ``kw``: its profile's arguments)."""
+    return settle_focal(problem, res, auto, rounds=0, **kw)[1]
 
 
 def settle_focal(problem, res, auto: dict | None, *, options=None, rounds: int = 3, min_gain: float = 0.5,
@@ -579,7 +571,7 @@ def settle_focal(problem, res, auto: dict | None, *, options=None, rounds: int =
     if solves is None:
         return res, auto
     for _ in range(rounds):
-        f, cost, Q, g = min(solves, key=lambda s: s[1])
+        _, cost, Q, g = min(solves, key=lambda s: s[1])
         if cost >= res.cost - min_gain:
             break
         res = solve(problem, Q, options, active=problem.active, g0=g)
