@@ -429,3 +429,41 @@ def test_hold_rows_by_hand():
     P, P0 = fig.keypoints(Q)[:, row.keypoints], fig.keypoints(q)[:, row.keypoints]
     np.testing.assert_allclose(np.asarray(r).reshape(-1), ((P - P0) / 0.05).reshape(-1), atol=1e-9)
     assert hold_rows(problem, q, None, names, 0.05) == []
+
+
+# ----------------------------------------------------------------------------- ankles only: a raised heel is still a contact
+def test_ankle_only_feet_detect_a_raised_heel_stance():
+    from pinrecon.contact import detection_settings
+
+    s = ContactSettings()
+    assert detection_settings(["left_toe", "left_ankle"], s) is s
+    a = detection_settings(["left_ankle", "right_ankle"], s)
+    assert (a.height_on_m, a.height_off_m) == pytest.approx((s.height_on_m + 0.05, s.height_off_m + 0.05))
+    # an ankle (built here): 0.5 s flat on the floor at 7 cm, 0.5 s still on the ball of the
+    # foot (heel raised: the ankle 6 cm higher, reached in 0.1 s), 0.5 s of swing at 1 m/s
+    fps = 60.0
+    t = np.arange(int(1.5 * fps)) / fps
+    y = 0.07 + 0.06 * np.clip((t - 0.5) / 0.1, 0.0, 1.0)
+    x = np.where(t > 1.0, t - 1.0, 0.0)
+    P = np.stack([x, y, np.zeros_like(t)], axis=1)[:, None]
+    fl = Floor((0.0, 1.0, 0.0), 0.0)
+    raised = (t >= 0.65) & (t <= 0.95)  # the rise itself (0.6 m/s) and the push-off are not still
+    assert not detect_contacts(P, fl, fps, s)[raised, 0].any()  # toe thresholds: heel up = in the air
+    found = detect_contacts(P, fl, fps, a)[:, 0]
+    assert found[raised].all() and found[t < 0.5].all()
+    assert not found[t > 1.1].any()
+
+
+def test_contact_velocity_rows_start_land_s_before_each_detected_contact():
+    from pinrecon.contact import FootContact, contact_rows
+
+    fig = pr.Figure.human()
+    C = np.zeros((6, 2), bool)
+    C[3:, 0] = True  # left ankle planted from frame 3
+    seen = np.zeros((6, 2))
+    feet = FootContact(Floor((0.0, 1.0, 0.0), 0.0), ["left_ankle", "right_ankle"], C, np.zeros(2), np.zeros(2),
+                       extra={"seen_speed_mps": seen})
+    for land_s, first in ((0.0, 3), (0.02, 2), (0.04, 1)):  # 50 fps: 0, 1 and 2 frames before
+        s = ContactSettings(lift_s=0.0, land_s=land_s)
+        vel = next(r for r in contact_rows(fig, feet, 50.0, s) if isinstance(r, ContactVelocity))
+        assert vel.frames[0][0] == first and vel.frames[-1][1] == 5
