@@ -12,6 +12,7 @@ import pytest
 
 import pinrecon as pr
 from pinrecon._resources import model_path
+from pinrecon.errors import InputError
 from pinrecon.problem import Weights, posture_row, rest_pose
 from pinrecon.rows import State
 from pinrecon.rows.posture import pose_prior
@@ -52,12 +53,11 @@ def test_prior_file_names_the_human_joints_within_their_limits(table):
     assert abs(rho) > 0.2
 
 
-def _prior_cost_by_hand(table, fig, Q, scale, huber=None):
-    """Per frame: 0.5 m^2 (Huber beyond ``huber``), m the correlated joints' Mahalanobis
-    distance / scale, plus 0.5 * the others' squared z / scale^2."""
+def _prior_cost_by_hand(table, fig, Q, scale, huber=None, cauchy=False):
+    """Per frame: 0.5 m^2 (Huber beyond ``huber``, or Cauchy at scale ``huber``), m the
+    correlated joints' Mahalanobis distance / scale, plus :func:`_diag_cost`."""
     m = fig.model
     q_of = {m.names[j]: m.idx_qs[j] for j in range(1, m.njoints) if m.nqs[j] == 1}
-    rest = rest_pose(fig)
     corr = table["correlated"]["joints"]
     qc = [q_of[n] for n in corr]
     D = Q[:, qc] - np.array([table["joints"][n][0] for n in corr])
@@ -65,10 +65,23 @@ def _prior_cost_by_hand(table, fig, Q, scale, huber=None):
     dist = np.sqrt(np.einsum("ti,ti->t", D, np.linalg.solve(C, D.T).T)) / scale
     if huber is None:
         cost = 0.5 * dist**2
+    elif cauchy:
+        cost = 0.5 * huber**2 * np.log(1.0 + (dist / huber) ** 2)
     else:
         cost = np.where(dist <= huber, 0.5 * dist**2, huber * dist - 0.5 * huber**2)
+    return cost + _diag_cost(table, fig, Q, scale)
+
+
+def _diag_cost(table, fig, Q, scale):
+    """Per frame: 0.5 * the squared z / scale^2 of the joints outside the correlated ones
+    (the file's mean and std, or the rest pose and 1 rad)."""
+    m = fig.model
+    q_of = {m.names[j]: m.idx_qs[j] for j in range(1, m.njoints) if m.nqs[j] == 1}
+    corr = table["correlated"]["joints"]
+    rest = rest_pose(fig)
+    cost = np.zeros(len(Q))
     for name, iq in q_of.items():
-        if name not in corr:  # the file's mean and std, or the rest pose and 1 rad
+        if name not in corr:
             mean, std = table["joints"].get(name, (rest[iq], 1.0))
             cost += 0.5 * ((Q[:, iq] - mean) / (scale * std)) ** 2
     return cost
@@ -83,10 +96,10 @@ def test_posture_row_of_the_human_by_hand(table):
     fig = pr.Figure.human()
     Q = _poses(fig, 6, 0.4, 0)
     Q[0] = fig.integrate(pose_prior(fig, rest_pose(fig))[0], 0.02 * np.ones(fig.nv))  # near the mean
-    quadratic = posture_row(fig, 6, Weights(pose_prior_huber=None)).evaluate(State(fig, Q, np.arange(6), True))
+    quadratic = posture_row(fig, 6, Weights(pose_prior_k=None)).evaluate(State(fig, Q, np.arange(6), True))
     np.testing.assert_allclose(0.5 * (quadratic.r**2).sum(1), _prior_cost_by_hand(table, fig, Q, 2.0), rtol=1e-9)
     # Weights(pose_prior=1): the same means, one standard deviation: four times the cost
-    r1 = posture_row(fig, 6, Weights(pose_prior=1.0, pose_prior_huber=None)).evaluate(State(fig, Q, np.arange(6), True)).r
+    r1 = posture_row(fig, 6, Weights(pose_prior=1.0, pose_prior_k=None)).evaluate(State(fig, Q, np.arange(6), True)).r
     np.testing.assert_allclose((r1**2).sum(1), 4 * (quadratic.r**2).sum(1), rtol=1e-9)
     # the default: Huber at a distance of 2 (some of these random poses are beyond it, some not)
     blk = posture_row(fig, 6, Weights()).evaluate(State(fig, Q, np.arange(6), True))
@@ -94,6 +107,19 @@ def test_posture_row_of_the_human_by_hand(table):
     assert blk.cost == pytest.approx(expect.sum(), rel=1e-9)
     assert (expect < _prior_cost_by_hand(table, fig, Q, 2.0)).any()
     assert (expect == _prior_cost_by_hand(table, fig, Q, 2.0)).any()
+    # Cauchy at 3: 0.5 k^2 log(1 + m^2 / k^2); its rows are the Mahalanobis rows scaled by
+    # (1 + m^2 / k^2)^(-1/2), and frame_costs gives each frame's loss
+    w = Weights(pose_prior_loss="cauchy", pose_prior_k=3.0)
+    row = posture_row(fig, 6, w)
+    blk = row.evaluate(State(fig, Q, np.arange(6), True))
+    expect = _prior_cost_by_hand(table, fig, Q, 2.0, huber=3.0, cauchy=True)
+    assert blk.cost == pytest.approx(expect.sum(), rel=1e-9)
+    np.testing.assert_allclose(row.frame_costs(Q), expect, rtol=1e-9)
+    m = np.sqrt(2.0 * (_prior_cost_by_hand(table, fig, Q, 2.0) - _diag_cost(table, fig, Q, 2.0)))
+    np.testing.assert_allclose(0.5 * (blk.r**2).sum(1), 0.5 * m**2 / (1.0 + m**2 / 9.0) + _diag_cost(table, fig, Q, 2.0),
+                               rtol=1e-9)
+    with pytest.raises(InputError, match="pose_prior_loss"):
+        Weights(pose_prior_loss="tukey")
 
 
 def _fd(row, fig, Q, col, f, eps=1e-6):
@@ -113,7 +139,7 @@ def test_posture_row_jacobian_against_finite_differences(some_inactive):
     if some_inactive:  # e.g. one leg only, as the hypothesis search's inverse kinematics
         active = np.zeros(fig.nv, bool)
         active[fig.support_mask(["left_knee", "left_ankle"])] = True
-    row = posture_row(fig, 3, Weights(pose_prior_huber=None), active)
+    row = posture_row(fig, 3, Weights(pose_prior_k=None), active)
     blk = row.evaluate(State(fig, Q, np.arange(3), True))
     J = np.asarray(blk.J)[:, 0]  # (T, m, c)
     for k, col in enumerate(row.cols):
@@ -123,11 +149,12 @@ def test_posture_row_jacobian_against_finite_differences(some_inactive):
         assert blk.r.shape[1] >= len(row.qcorr) > len(row.cols)
 
 
-def test_huber_rows_give_the_gradient_of_their_cost():
-    """Reweighted rows (J, r scaled by sqrt(w)): J^T r is the gradient of the Huber cost."""
+@pytest.mark.parametrize("loss", ["huber", "cauchy"])
+def test_robust_rows_give_the_gradient_of_their_cost(loss):
+    """Reweighted rows (J, r scaled by sqrt(w)): J^T r is the gradient of the robust cost."""
     fig = pr.Figure.human()
     Q = _poses(fig, 4, 0.5, 2)
-    row = posture_row(fig, 4, Weights())
+    row = posture_row(fig, 4, Weights(pose_prior_loss=loss))
     blk = row.evaluate(State(fig, Q, np.arange(4), True))
     grad = np.einsum("tmc,tm->tc", np.asarray(blk.J)[:, 0], blk.r)
     for k, col in enumerate(row.cols):

@@ -93,6 +93,9 @@ def default_calibrate(figure, keyframes=None, lengths_from_tracks: bool = False,
     return "lengths" if lengths_from_tracks else "none"
 
 
+_CHOICES = {"loss": ("auto", "l2", "huber", "cauchy"), "pose_prior_loss": ("huber", "cauchy"), "root_group": ("R3xSO3", "SE3")}
+
+
 @dataclass(frozen=True)
 class Weights:
     """Standard deviations that weight each row kind (all have defaults tuned on real
@@ -114,11 +117,11 @@ class Weights:
         motion capture instead (``models/priors/human_pose.json``): the joints that move in
         its clips held by their joint Gaussian, i.e. their Mahalanobis distance from the
         mean in units of ``pose_prior``, every other 1-dof joint pulled to its mean with its
-        standard deviation times ``pose_prior`` (2: nine clips of five subjects are a small
-        sample of human poses; ``None``: the rest-pose prior of ``sigma_posture``, as other
-        figures). Measured in ``bench/bench_real.py``; see ``models/priors/README.md``.
-    pose_prior_huber : Mahalanobis distance (units of ``pose_prior``) beyond which a frame's pose
-        prior grows linearly (Huber; ``None``: quadratic), :class:`~pinrecon.rows.posture.PosePrior`.
+        standard deviation times ``pose_prior`` (2: nine clips are a small sample of human
+        poses; ``None``: the rest-pose prior of ``sigma_posture``, as other figures).
+    pose_prior_loss, pose_prior_k : robust loss on a frame's Mahalanobis distance, quadratic up
+        to ``k`` (``None``: always), then ``"huber"`` linear or ``"cauchy"`` logarithmic (better
+        on dance, worse for an auto focal: bench/README.md; :class:`~.rows.posture.PosePrior`).
     sigma_proportions : log-normal prior on the figure's segment scale factors when they
         are calibrated (``calibrate="lengths"``): standard deviation of the log factor
         around its start (0.1: about 10 %).
@@ -138,19 +141,17 @@ class Weights:
     sigma_init_prior: float = 1.0
     sigma_posture: float | None = 3.0
     pose_prior: float | None = 2.0
-    pose_prior_huber: float | None = 2.0
+    pose_prior_loss: str = "huber"
+    pose_prior_k: float | None = 2.0
     root_group: str = "R3xSO3"
     sigma_proportions: float = 0.1
 
     def __post_init__(self):
         for f in fields(self):
             v = getattr(self, f.name)
-            if f.name == "loss":
-                if v not in ("auto", "l2", "huber", "cauchy"):
-                    raise InputError(f"must be 'auto', 'l2', 'huber' or 'cauchy', got {v!r}", field="weights.loss")
-            elif f.name == "root_group":
-                if v not in ("R3xSO3", "SE3"):
-                    raise InputError(f"must be 'R3xSO3' or 'SE3', got {v!r}", field="weights.root_group")
+            if f.name in _CHOICES:
+                if v not in _CHOICES[f.name]:
+                    raise InputError(f"must be one of {', '.join(_CHOICES[f.name])}, got {v!r}", field=f"weights.{f.name}")
             elif v is not None and not (isinstance(v, (int, float)) and np.isfinite(v) and v > 0):
                 raise InputError(f"must be a positive number, got {v!r}", field=f"weights.{f.name}")
 

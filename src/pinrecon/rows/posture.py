@@ -57,18 +57,29 @@ class PosePrior(Posture):
     """The generic human's pose prior: :class:`Posture` (each joint to its mean, ``sigma``
     its standard deviation times ``scale``), except the joints ``qcorr`` (q indices), whose
     rows are ``z = A (q[qcorr] - mean)`` with ``A^T A = cov^-1 / scale^2``: ``|z|`` is their
-    Mahalanobis distance ``m`` from the mean in units of ``scale``, and a frame pays
-    ``0.5 m^2`` up to ``m = huber``, ``huber m - 0.5 huber^2`` beyond (``None``: always
-    quadratic): a pose far outside the prior's clips is pulled with a bounded force, so
-    motion they do not cover (a dancer's raised arms) is not forced into theirs. The rows of
-    every correlated joint are written (a joint that is not ``active`` enters at its current
-    value, i.e. the conditional Gaussian of the active ones); the Jacobian covers the active
-    columns.
+    Mahalanobis distance ``m`` from the mean in units of ``scale``. A frame pays ``rho(m)``:
+
+    * ``loss="cauchy"``: ``0.5 k^2 log(1 + m^2 / k^2)``, quadratic near the mean and only
+      logarithmic far from it: the prior tells a pose like its clips' from one unlike them,
+      but barely ranks two poses unlike them (a dancer's arms raised in front or behind);
+    * ``loss="huber"``: ``0.5 m^2`` up to ``m = k``, ``k m - 0.5 k^2`` beyond: a bounded
+      pull, but one that still prefers the unlike pose nearer the clips';
+    * ``k=None``: always quadratic.
+
+    Robust losses are reweighted rows (as the measurement's): the rows are scaled by
+    ``sqrt(rho'(m) / m)`` and the block reports the true cost. The rows of every correlated
+    joint are written (a joint that is not ``active`` enters at its current value, i.e. the
+    conditional Gaussian of the active ones); the Jacobian covers the active columns.
     """
 
-    def __init__(self, figure, n_frames, q_ref, sigma, qcorr, cov, scale, active=None, huber=None):
+    LOSSES = ("cauchy", "huber")
+
+    def __init__(self, figure, n_frames, q_ref, sigma, qcorr, cov, scale, active=None, k=None, loss="cauchy"):
         super().__init__(figure, n_frames, q_ref, sigma, active)
-        self.huber = None if huber is None else float(huber)
+        if loss not in self.LOSSES:
+            raise ValueError(f"loss must be one of {self.LOSSES}, got {loss!r}")
+        self.k = None if k is None else float(k)
+        self.loss = loss
         self.qcorr = np.asarray(qcorr, int)
         self.mean_corr = np.asarray(q_ref, float)[self.qcorr]
         L = np.linalg.cholesky(np.linalg.inv(np.asarray(cov, float)))  # cov^-1 = L L^T
@@ -85,11 +96,10 @@ class PosePrior(Posture):
         N, c, nd = len(self.frames), len(self.cols), len(self.diag)
         rd = (Q[:, self.qidx[self.diag]] - self.q_ref[self.diag]) * self.inv_sigma[self.diag]
         rc = (Q[:, self.qcorr] - self.mean_corr) @ self.A.T
-        k, cv = self.huber, None
-        if k is not None:  # Huber on the frame's distance m, reweighted rows (as the measurement's)
-            m = np.linalg.norm(rc, axis=1)
-            sw = np.sqrt(np.where(m <= k, 1.0, k / np.maximum(m, 1e-300)))
-            cv = float(np.where(m <= k, 0.5 * m**2, k * m - 0.5 * k**2).sum() + 0.5 * (rd**2).sum())
+        cv = None
+        if self.k is not None:  # the robust loss on the frame's distance m, reweighted rows
+            rho, sw = self._robust(np.linalg.norm(rc, axis=1))
+            cv = float(rho.sum() + 0.5 * (rd**2).sum())
             rc = rc * sw[:, None]
         r = np.concatenate([rd, rc], axis=1)
         J = None
@@ -97,13 +107,32 @@ class PosePrior(Posture):
             Jf = np.zeros((nd + len(self.qcorr), c))
             Jf[np.arange(nd), self.diag] = self.inv_sigma[self.diag]
             Jf[np.ix_(nd + np.arange(len(self.qcorr)), self._corr_col)] = self.A[:, self._corr_in]
-            if k is None:
+            if self.k is None:
                 J = np.broadcast_to(Jf, (N, 1) + Jf.shape)
             else:
                 w_rows = np.ones((N, len(Jf)))
                 w_rows[:, nd:] = sw[:, None]
                 J = (w_rows[:, :, None] * Jf)[:, None]
         return RowBlock(self.frames[:, None], r, J, self.cols, self.name, cost_value=cv)
+
+    def _robust(self, m):
+        """(rho(m), sqrt(rho'(m) / m)) per frame."""
+        k = self.k
+        if self.loss == "cauchy":
+            u = (m / k) ** 2
+            return 0.5 * k**2 * np.log1p(u), 1.0 / np.sqrt(1.0 + u)
+        out = m <= k
+        return np.where(out, 0.5 * m**2, k * m - 0.5 * k**2), np.sqrt(np.where(out, 1.0, k / np.maximum(m, 1e-300)))
+
+    def frame_costs(self, Q) -> np.ndarray:
+        """(T,) each frame's cost of trajectory ``Q`` (T, nq) under this prior (the robust
+        loss itself, not the reweighted rows' 0.5 |r|^2)."""
+        Q = np.asarray(Q, float)
+        rd = (Q[:, self.qidx[self.diag]] - self.q_ref[self.diag]) * self.inv_sigma[self.diag]
+        rc = (Q[:, self.qcorr] - self.mean_corr) @ self.A.T
+        m = np.linalg.norm(rc, axis=1)
+        rho = 0.5 * m**2 if self.k is None else self._robust(m)[0]
+        return rho + 0.5 * (rd**2).sum(axis=1)
 
 
 def pose_prior(figure, rest: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -145,7 +174,8 @@ def posture_row(figure, n_frames: int, weights, active=None) -> Posture | None:
         ref, sigma = pose_prior(figure, rest_pose(figure))
         qcorr, cov = pose_prior_covariance(figure)
         s = weights.pose_prior
-        return PosePrior(figure, n_frames, ref, sigma * s, qcorr, cov, s, active, weights.pose_prior_huber)
+        return PosePrior(figure, n_frames, ref, sigma * s, qcorr, cov, s, active, weights.pose_prior_k,
+                        weights.pose_prior_loss)
     if weights.sigma_posture is None:
         return None
     return Posture(figure, n_frames, rest_pose(figure), weights.sigma_posture, active)
