@@ -100,3 +100,29 @@ def test_outliers_reported_and_down_weighted(scene):
          (("robust", robust), ("l2", l2), ("clean", clean))}
     assert e["robust"] < e["l2"] and e["robust"] < 1.2 * e["clean"] + 2.0, e
     assert "points stayed far off after convergence" in robust.summary()
+
+
+def test_outliers_are_found_again_for_a_later_solve(scene):
+    """report_outliers re-reads the outliers of the solve it is given into the fault
+    stage's report (reconstruct calls it when an auto camera's focal restarts the solve)."""
+    from types import SimpleNamespace
+
+    from pinrecon.faults import fault_stage, report_outliers
+    from pinrecon.problem import make_problem
+    from pinrecon.solver import solve
+
+    fig, Q, cam, _P, uv, keys = scene
+    bad = uv.copy()
+    for f, n in OUTLIERS:
+        bad[f, NAMES.index(n)] += 60.0
+    problem = make_problem(fig, pr.Tracks(bad, NAMES, FPS, np.full((T, len(NAMES)), 0.9)), cam, keys)
+    res = fault_stage(problem, solve(problem, Q))
+    report = problem.reports["faults"]
+    assert set(zip(report.outlier_frames.tolist(), report.outlier_points.tolist())) == set(OUTLIERS)
+    # a trajectory whose frame 20 holds frame 40's pose: frame 20's points are far off
+    moved = Q.copy()
+    moved[20] = Q[40]
+    report_outliers(problem, SimpleNamespace(x=moved, g=None))
+    assert problem.reports["faults"] is report and 20 in report.outlier_frames.tolist()
+    report_outliers(problem, res)
+    assert set(zip(report.outlier_frames.tolist(), report.outlier_points.tolist())) == set(OUTLIERS)

@@ -31,7 +31,8 @@ import numpy as np
 
 from .solver import SolveResult, SolverOptions, solve
 
-__all__ = ["FaultReport", "detect_swaps", "fault_stage", "find_outliers", "left_right_pairs", "repair_swaps"]
+__all__ = ["FaultReport", "detect_swaps", "fault_stage", "find_outliers", "left_right_pairs", "repair_swaps",
+           "report_outliers"]
 
 _SIDES = (("left_", "right_"), ("Left", "Right"), ("left", "right"), ("l_", "r_"), ("L", "R"))
 
@@ -211,12 +212,37 @@ def fault_stage(problem, res: SolveResult, options: SolverOptions | None = None,
         g = getattr(res, "g", None)
         g = None if g is None or not len(g) else g
     reports = getattr(problem, "reports", None)
-    names = getattr(problem, "camera_names", None) or [f"camera{v + 1}" for v in range(len(views))]
+    names = _camera_names(problem, len(views))
     for v, (_, meas, factor) in enumerate(views):
         rows = np.flatnonzero(toggled[v])
         report = FaultReport(meas.frames[rows] // factor, gain_of[v][rows], prefix="" if v == 0 else f"{names[v]}_")
-        (report.outlier_frames, report.outlier_points, report.outlier_error_px,
-         report.outlier_threshold_px) = find_outliers(problem, res.x, g=g, view=v)
+        _set_outliers(report, problem, res.x, g, v)
         if reports is not None:
             reports["faults" if v == 0 else f"faults_{names[v]}"] = report
     return res
+
+
+def report_outliers(problem, res: SolveResult) -> None:
+    """Find the outliers again against solve ``res`` and put them in the fault reports
+    :func:`fault_stage` left in ``problem.reports``: for a solve after the fault stage
+    (an auto camera's focal length carried down its valley restarts it), whose points
+    are not where the fault stage's were."""
+    views, reports = _views(problem), getattr(problem, "reports", None)
+    if not views or reports is None:
+        return
+    g = getattr(res, "g", None)
+    g = None if g is None or not len(g) else g
+    names = _camera_names(problem, len(views))
+    for v in range(len(views)):
+        report = reports.get("faults" if v == 0 else f"faults_{names[v]}")
+        if report is not None:
+            _set_outliers(report, problem, res.x, g, v)
+
+
+def _camera_names(problem, n: int) -> list[str]:
+    return getattr(problem, "camera_names", None) or [f"camera{v + 1}" for v in range(n)]
+
+
+def _set_outliers(report: FaultReport, problem, Q, g, view: int) -> None:
+    (report.outlier_frames, report.outlier_points, report.outlier_error_px,
+     report.outlier_threshold_px) = find_outliers(problem, Q, g=g, view=view)

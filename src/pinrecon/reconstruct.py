@@ -24,7 +24,7 @@ import numpy as np
 
 from .contact import solve_on_the_floor
 from .errors import InputError
-from .faults import fault_stage
+from .faults import fault_stage, report_outliers
 from .problem import (
     ReconstructionProblem,
     Weights,
@@ -289,7 +289,10 @@ def reconstruct(
         problem, q0 = _lengths_from_tracks(problem, q0, _start_name(init, seed), inputs)
     res = solve(problem, q0, options, callback, active=problem.active, g0=problem.g0)
     res = fault_stage(problem, res, options, callback)  # left/right swaps repaired (warm re-solve), outliers
+    faulted = res
     res, auto = settle_focal(problem, res, auto, options=options)  # an auto camera's focal: down its valley
+    if res is not faulted:  # restarted down the focal's valley: the outliers of where it ended
+        report_outliers(problem, res)
     if floor is None and contact is None:
         return _package(problem, res, auto)
     problem, res, feet = solve_on_the_floor(
