@@ -130,3 +130,23 @@ def test_console_script_help():
     assert out.returncode == 0
     for cmd in ("reconstruct", "demo", "plot", "export", "links"):
         assert cmd in out.stdout
+
+
+def test_pose_prior_flags_reach_the_weights_of_reconstruct_and_edit(monkeypatch):
+    from pinrecon.cli import build_parser, pose_prior_weights
+    from pinrecon.workbench import app
+
+    p = build_parser()
+    base = ["--figure", "human", "--tracks", "t.json", "--camera", "c.json"]
+    r = ["reconstruct", "--out", "o", *base]
+    assert pose_prior_weights(p.parse_args(r)) == {}
+    got = pose_prior_weights(p.parse_args([*r, "--pose-prior", "3", "--pose-prior-loss", "cauchy"]))
+    assert got == {"pose_prior": 3.0, "pose_prior_loss": "cauchy", "pose_prior_k": 3.0}
+    assert pr.Weights(**got).pose_prior_loss == "cauchy"
+    assert pose_prior_weights(p.parse_args([*r, "--pose-prior-loss", "huber"]))["pose_prior_k"] == 2.0
+    with pytest.raises(SystemExit):
+        p.parse_args([*r, "--pose-prior-loss", "tukey"])
+    seen = {}
+    monkeypatch.setattr(app, "edit_from_args", lambda args, figure=None, weights=None: seen.update(weights) or 0)
+    assert main(["edit", *base, "--sigma-px", "3", "--pose-prior-loss", "cauchy"]) == 0
+    assert seen == {"sigma_px": 3.0, "pose_prior_loss": "cauchy", "pose_prior_k": 3.0}

@@ -293,7 +293,9 @@ def cmd_export(args) -> int:
 def cmd_edit(args) -> int:
     from .workbench.app import edit_from_args
 
-    return edit_from_args(args, _figure_from_args(args) if args.figure else None)
+    wkw = {k: getattr(args, k) for k in ("sigma_px", "loss") if getattr(args, k, None) is not None}
+    wkw.update(pose_prior_weights(args))
+    return edit_from_args(args, _figure_from_args(args) if args.figure else None, weights=wkw)
 
 
 def cmd_links(args) -> int:
@@ -483,11 +485,19 @@ def add_pose_prior_argument(parser) -> None:
                         help="the generic human's pose prior from motion capture (a joint Gaussian): its "
                         "standard deviations times SCALE (default 2), or none (a weak rest-pose prior, as "
                         "other figures)")
+    parser.add_argument("--pose-prior-loss", choices=("huber", "cauchy"), default=argparse.SUPPRESS,
+                        help="the pose prior's robust loss beyond a Mahalanobis distance of 2 (huber, the "
+                        "default) or 3 (cauchy: better for motion unlike walking and running, such as dance, "
+                        "with a given camera; worse for --camera auto's focal length)")
 
 
 def pose_prior_weights(args) -> dict:
-    """``{"pose_prior": ...}`` when ``--pose-prior`` was given, else ``{}``."""
-    return {"pose_prior": args.pose_prior} if hasattr(args, "pose_prior") else {}
+    """The :class:`~pinrecon.Weights` keywords of ``--pose-prior`` and ``--pose-prior-loss``
+    (those given)."""
+    out = {"pose_prior": args.pose_prior} if hasattr(args, "pose_prior") else {}
+    if hasattr(args, "pose_prior_loss"):
+        out.update(pose_prior_loss=args.pose_prior_loss, pose_prior_k=3.0 if args.pose_prior_loss == "cauchy" else 2.0)
+    return out
 
 
 def main(argv=None) -> int:

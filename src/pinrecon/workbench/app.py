@@ -371,8 +371,9 @@ def serve(session: Session, *, host="127.0.0.1", port=8080, open_browser=True, b
     return wb
 
 
-def edit_from_args(args, figure=None) -> int:
-    """``pinrecon edit``: load the inputs (and a result NPZ) and serve the workbench."""
+def edit_from_args(args, figure=None, weights: dict | None = None) -> int:
+    """``pinrecon edit``: load the inputs (and a result NPZ) and serve the workbench with
+    ``Weights(**weights)`` (the command line's, :func:`pinrecon.cli.pose_prior_weights`)."""
     from .. import Weights, load_camera, load_keyframes, load_result, load_tracks
 
     result = load_result(args.result) if args.result else None
@@ -383,12 +384,9 @@ def edit_from_args(args, figure=None) -> int:
     tracks = load_tracks(args.tracks, fps=args.fps)
     camera = load_camera(args.camera)
     keys = load_keyframes(args.keyframes) if args.keyframes else None
-    wkw = {k: getattr(args, k) for k in ("sigma_px", "loss") if getattr(args, k, None) is not None}
-    if hasattr(args, "pose_prior"):  # --pose-prior given
-        wkw["pose_prior"] = args.pose_prior
     if result is None:
         print("pinrecon edit: solving once before serving ...", file=__import__("sys").stderr, flush=True)
-    session = Session(figure, tracks, camera, keys, result=result, fps_out=args.fps_out, weights=Weights(**wkw))
+    session = Session(figure, tracks, camera, keys, result=result, fps_out=args.fps_out, weights=Weights(**(weights or {})))
     out = Path(args.out)
     serve(session, host=args.host, port=args.port, open_browser=not args.no_browser, out_dir=out,
           keyframes_path=args.keyframes_out or out / "keyframes.json", result_path=args.result_out or out / "result.npz")
