@@ -145,8 +145,8 @@ def cmd_reconstruct(args) -> int:
     else:
         cam = cams
     kf = load_keyframes(args.keyframes) if args.keyframes else None
-    wkw = {k: getattr(args, k) for k in ("sigma_px", "acc_root_translation", "acc_root_rotation", "acc_joints", "sigma_limits", "loss") if getattr(args, k, None) is not None}
-    wkw.update(pose_prior_weights(args))
+    wkw = _weights_kwargs(args, ("sigma_px", "acc_root_translation", "acc_root_rotation", "acc_joints", "sigma_limits",
+                                 "loss"))
     opts = SolverOptions(max_iterations=args.max_iterations)
     progress = _Progress(args.quiet, args.max_iterations)
     res = reconstruct(
@@ -293,9 +293,8 @@ def cmd_export(args) -> int:
 def cmd_edit(args) -> int:
     from .workbench.app import edit_from_args
 
-    wkw = {k: getattr(args, k) for k in ("sigma_px", "loss") if getattr(args, k, None) is not None}
-    wkw.update(pose_prior_weights(args))
-    return edit_from_args(args, _figure_from_args(args) if args.figure else None, weights=wkw)
+    return edit_from_args(args, _figure_from_args(args) if args.figure else None,
+                          weights=_weights_kwargs(args, ("sigma_px", "loss")))
 
 
 def cmd_links(args) -> int:
@@ -489,6 +488,14 @@ def add_pose_prior_argument(parser) -> None:
                         help="the pose prior's robust loss beyond a Mahalanobis distance of 2 (huber, the "
                         "default) or 3 (cauchy: better for motion unlike walking and running, such as dance, "
                         "with a given camera; worse for --camera auto's focal length)")
+
+
+def _weights_kwargs(args, names) -> dict:
+    """The :class:`~pinrecon.Weights` keywords the command line gave: ``names`` (those not
+    None) and the pose-prior flags (:func:`pose_prior_weights`)."""
+    out = {k: getattr(args, k) for k in names if getattr(args, k, None) is not None}
+    out.update(pose_prior_weights(args))
+    return out
 
 
 def pose_prior_weights(args) -> dict:

@@ -35,7 +35,7 @@ from .floor import Floor, as_floor
 from .rows.contact import ContactHeight, ContactVelocity
 from .rows.floor import FloorPenetration
 from .rows.points3d import Points3D
-from .solver import solve
+from .solver import globals_of, solve
 
 __all__ = [
     "FOOT_EXTRAS", "ContactSettings", "Floor", "FootContact", "body_up", "contact_heights", "contact_rows",
@@ -506,12 +506,6 @@ def _observed_names(problem) -> list[str] | None:
     return None if src is None else list(src.names)
 
 
-def _globals_of(res):
-    """A solve result's global unknowns, None when it has none."""
-    g = getattr(res, "g", None)
-    return None if g is None or not len(g) else g
-
-
 def _lifting(C, n: int, n_before: int = 0):
     """Contacts ``C`` (T, F) each extended by ``n`` frames after its end and ``n_before``
     frames before its start."""
@@ -610,9 +604,9 @@ def solve_on_the_floor(problem, res, floor="auto", contact="auto", *, settings: 
     feet = None
     out_problem = problem
     names = _foot_names(problem)
-    hold = hold_rows(problem, x, _globals_of(res), names, s.hold_m) if s.hold_m > 0 else []
+    hold = hold_rows(problem, x, globals_of(res), names, s.hold_m) if s.hold_m > 0 else []
     for _ in range(int(s.rounds)):
-        g = _globals_of(res)
+        g = globals_of(res)
         feet = ground_contacts(problem, x, floor, contact, s, names=names, g=g)
         out_problem = problem.with_rows(contact_rows(problem.figure, feet, problem.fps, s, problem.factor) + hold)
         res = solve(out_problem, x, options, callback, active=problem.active, **({} if g is None else {"g0": g}))

@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .solver import SolveResult, SolverOptions, solve
+from .solver import SolveResult, SolverOptions, globals_of, solve
 
 __all__ = ["FaultReport", "detect_swaps", "fault_stage", "find_outliers", "left_right_pairs", "repair_swaps",
            "report_outliers"]
@@ -192,8 +192,7 @@ def fault_stage(problem, res: SolveResult, options: SolverOptions | None = None,
     views = _views(problem)
     if not views:
         return res
-    g = getattr(res, "g", None)
-    g = None if g is None or not len(g) else g
+    g = globals_of(res)
     toggled = [np.zeros(len(m.frames), bool) for _, m, _ in views]  # a frame swapped twice is back
     gain_of = [np.zeros(len(m.frames)) for _, m, _ in views]
     for _ in range(rounds):
@@ -209,8 +208,7 @@ def fault_stage(problem, res: SolveResult, options: SolverOptions | None = None,
             break
         kw = {"g0": g} if g is not None else {}
         res = solve(problem, res.x, options, callback, active=problem.active, **kw)
-        g = getattr(res, "g", None)
-        g = None if g is None or not len(g) else g
+        g = globals_of(res)
     reports = getattr(problem, "reports", None)
     names = _camera_names(problem, len(views))
     for v, (_, meas, factor) in enumerate(views):
@@ -218,7 +216,7 @@ def fault_stage(problem, res: SolveResult, options: SolverOptions | None = None,
         report = FaultReport(meas.frames[rows] // factor, gain_of[v][rows], prefix="" if v == 0 else f"{names[v]}_")
         _set_outliers(report, problem, res.x, g, v)
         if reports is not None:
-            reports["faults" if v == 0 else f"faults_{names[v]}"] = report
+            reports[_report_key(v, names)] = report
     return res
 
 
@@ -230,17 +228,21 @@ def report_outliers(problem, res: SolveResult) -> None:
     views, reports = _views(problem), getattr(problem, "reports", None)
     if not views or reports is None:
         return
-    g = getattr(res, "g", None)
-    g = None if g is None or not len(g) else g
+    g = globals_of(res)
     names = _camera_names(problem, len(views))
     for v in range(len(views)):
-        report = reports.get("faults" if v == 0 else f"faults_{names[v]}")
+        report = reports.get(_report_key(v, names))
         if report is not None:
             _set_outliers(report, problem, res.x, g, v)
 
 
 def _camera_names(problem, n: int) -> list[str]:
     return getattr(problem, "camera_names", None) or [f"camera{v + 1}" for v in range(n)]
+
+
+def _report_key(view: int, names: list[str]) -> str:
+    """Where camera ``view``'s :class:`FaultReport` goes in ``problem.reports``."""
+    return "faults" if view == 0 else f"faults_{names[view]}"
 
 
 def _set_outliers(report: FaultReport, problem, Q, g, view: int) -> None:

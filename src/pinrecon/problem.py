@@ -29,7 +29,7 @@ from .rows import (
     CameraScale, GlobalPrior, JointKeyframes, JointLimits, Measurement2D, Points3D, Posture, Smoothing, State,
     smoothing_sigmas,
 )
-from .rows.posture import posture_row, rest_pose
+from .rows.posture import PosePrior, posture_row, rest_pose
 from .tracks import Keyframe, Keyframes, Markers, Tracks
 
 __all__ = [
@@ -93,7 +93,7 @@ def default_calibrate(figure, keyframes=None, lengths_from_tracks: bool = False,
     return "lengths" if lengths_from_tracks else "none"
 
 
-_CHOICES = {"loss": ("auto", "l2", "huber", "cauchy"), "pose_prior_loss": ("huber", "cauchy"), "root_group": ("R3xSO3", "SE3")}
+_CHOICES = {"loss": ("auto", "l2", "huber", "cauchy"), "pose_prior_loss": PosePrior.LOSSES, "root_group": ("R3xSO3", "SE3")}
 
 
 @dataclass(frozen=True)

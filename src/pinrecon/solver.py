@@ -49,7 +49,7 @@ from scipy.linalg import LinAlgError
 
 from .banded import ActiveNormalEquations, ArrowheadFactor, BandedNormalEquations
 
-__all__ = ["SolverOptions", "IterationReport", "SolveResult", "solve", "BandedNormalEquations", "ArrowheadFactor"]
+__all__ = ["SolverOptions", "IterationReport", "SolveResult", "globals_of", "solve", "BandedNormalEquations", "ArrowheadFactor"]
 
 
 @dataclass
@@ -138,6 +138,12 @@ class SolveResult:
     time: float = 0.0
     initial_cost: float = float("nan")
     g: np.ndarray | None = None  # the global unknowns at the solution (None without globals)
+
+
+def globals_of(res) -> np.ndarray | None:
+    """A solve result's global unknowns (``res.g``), None when it has none."""
+    g = getattr(res, "g", None)
+    return None if g is None or not len(g) else g
 
 
 def _costs(blocks) -> dict[str, float]:

@@ -72,9 +72,9 @@ class PosePrior(Posture):
     conditional Gaussian of the active ones); the Jacobian covers the active columns.
     """
 
-    LOSSES = ("cauchy", "huber")
+    LOSSES = ("huber", "cauchy")
 
-    def __init__(self, figure, n_frames, q_ref, sigma, qcorr, cov, scale, active=None, k=None, loss="cauchy"):
+    def __init__(self, figure, n_frames, q_ref, sigma, qcorr, cov, scale, active=None, k=None, loss="huber"):
         super().__init__(figure, n_frames, q_ref, sigma, active)
         if loss not in self.LOSSES:
             raise ValueError(f"loss must be one of {self.LOSSES}, got {loss!r}")
@@ -91,11 +91,14 @@ class PosePrior(Posture):
         self._corr_in = np.array([i for i, q in enumerate(self.qcorr) if int(q) in pos], int)
         self._corr_col = np.array([pos[int(self.qcorr[i])] for i in self._corr_in], int)
 
-    def evaluate(self, state: State, jacobian: bool = True) -> RowBlock:
-        Q = state.Q
-        N, c, nd = len(self.frames), len(self.cols), len(self.diag)
+    def _residuals(self, Q):
+        """(rd, rc): the diagonal rows (joints outside ``qcorr``) and the Mahalanobis rows."""
         rd = (Q[:, self.qidx[self.diag]] - self.q_ref[self.diag]) * self.inv_sigma[self.diag]
-        rc = (Q[:, self.qcorr] - self.mean_corr) @ self.A.T
+        return rd, (Q[:, self.qcorr] - self.mean_corr) @ self.A.T
+
+    def evaluate(self, state: State, jacobian: bool = True) -> RowBlock:
+        N, c, nd = len(self.frames), len(self.cols), len(self.diag)
+        rd, rc = self._residuals(state.Q)
         cv = None
         if self.k is not None:  # the robust loss on the frame's distance m, reweighted rows
             rho, sw = self._robust(np.linalg.norm(rc, axis=1))
@@ -127,9 +130,7 @@ class PosePrior(Posture):
     def frame_costs(self, Q) -> np.ndarray:
         """(T,) each frame's cost of trajectory ``Q`` (T, nq) under this prior (the robust
         loss itself, not the reweighted rows' 0.5 |r|^2)."""
-        Q = np.asarray(Q, float)
-        rd = (Q[:, self.qidx[self.diag]] - self.q_ref[self.diag]) * self.inv_sigma[self.diag]
-        rc = (Q[:, self.qcorr] - self.mean_corr) @ self.A.T
+        rd, rc = self._residuals(np.asarray(Q, float))
         m = np.linalg.norm(rc, axis=1)
         rho = 0.5 * m**2 if self.k is None else self._robust(m)[0]
         return rho + 0.5 * (rd**2).sum(axis=1)

@@ -32,9 +32,10 @@ that smoother, made tractable by the figure's structure (geometry in :mod:`.limb
    robust prior those are reweighted, ``0.5 m^2 / (1 + m^2 / k^2)`` at a Mahalanobis
    distance ``m`` under the Cauchy loss, bounded by ``k^2 / 2``: a pose unlike the
    prior's clips is not ranked against another unlike them (scored with the loss itself,
-   the bench_real dance was 7 mm worse on the mean of four runs). Between frames, the smoothing prior: changing a segment's reflection from
-   one frame to the next costs its depth jump (measured from the local minimum of its
-   depth, so free where the segment crosses the image plane, dear elsewhere).
+   the bench_real dance was 7 mm worse on the mean of four runs). Between frames, the
+   smoothing prior: changing a segment's reflection from one frame to the next costs its
+   depth jump (measured from the local minimum of its depth, so free where the segment
+   crosses the image plane, dear elsewhere).
 4. **Path.** Dynamic programming over frames (sub-sampled to ``rate_hz``) picks the
    cheapest path per limb; forward and backward passes give every state's min-marginal
    cost. The limb's joints follow the chosen states' poses (interpolated in between).
