@@ -96,6 +96,56 @@ def test_span_gaps_match_brute_force():
             assert gap == pytest.approx(alt - cost[best_path])
 
 
+def _chain_cost(p, unary, trans, acc):
+    N = len(p)
+    c = unary[np.arange(N), p].sum() + sum(trans[t, p[t], p[t + 1]] for t in range(N - 1))
+    return c + sum(acc[t, p[t], p[t + 1], p[t + 2]] for t in range(N - 2))
+
+
+def test_second_order_path_and_gaps_match_brute_force():
+    """With a cost on three consecutive states (the depth acceleration), the path, its
+    min-marginals and the span gaps are those of enumeration."""
+    rng = np.random.default_rng(7)
+    N, H = 6, 3
+    for trial in range(4):
+        unary, trans = rng.uniform(0, 3, (N, H)), rng.uniform(0, 3, (N - 1, H, H))
+        trans[:, np.arange(H), np.arange(H)] = 0.0
+        acc = rng.uniform(0, 3, (N - 2, H, H, H))
+        cost = {p: _chain_cost(p, unary, trans, acc) for p in itertools.product(range(H), repeat=N)}
+        best = min(cost, key=cost.get)
+        path, marg = min_sum_path(unary, trans, acc)
+        assert tuple(path) == best
+        for t in range(N):
+            for h in range(H):
+                assert marg[t, h] == pytest.approx(min(c for p, c in cost.items() if p[t] == h))
+        for a, b, h, gap in span_gaps(unary, trans, path, acc):
+            alt = min(c for p, c in cost.items() if len(set(p[a:b])) == 1 and p[a] != h)
+            assert gap == pytest.approx(alt - cost[best])
+
+
+def test_bouncing_limb_costs_its_acceleration():
+    """A segment whose depth crosses the image plane at constant speed: both reflections
+    look alike in every frame and switching is free at the crossing, so only the
+    second-order term tells a crossing from a bounce; it costs the bounce
+    what the smoothing prior charges, 0.5 (2 v / dt / (sigma L))^2 dt."""
+    from pinrecon.starts.hypotheses import _depth_acceleration
+
+    N, dt, v, L, sigma = 9, 1 / 30, 1.2, 0.4, 10.0
+    depth = v * dt * (np.arange(N) - 4.0)  # crosses at frame 4
+    z = np.stack([np.abs(depth), -np.abs(depth)], axis=1)[:, :, None]  # state 1: far (+), state 0: near (-)
+    acc = _depth_acceleration(z, [L], dt, sigma)
+    unary = np.zeros((N, 2))
+    trans = np.zeros((N - 1, 2, 2))
+    path, _ = min_sum_path(unary, trans, acc)
+    truth = (depth > 0).astype(int)
+    seen = np.abs(depth) > 0  # the crossing frame itself is either state
+    # the crossing or its global mirror (the other terms decide which): never a bounce
+    assert (path[seen] == truth[seen]).all() or (path[seen] == 1 - truth[seen]).all()
+    bounce = _chain_cost(np.ones(N, int), unary, trans, acc)
+    assert bounce == pytest.approx(0.5 * (2 * v / dt / (sigma * L)) ** 2 * dt)
+    assert _chain_cost(tuple(path), unary, trans, acc) == pytest.approx(0.0, abs=1e-12)
+
+
 def test_limb_chains_of_the_human():
     fig = pr.Figure.human()
     passes = limb_chains(fig, NAMES)

@@ -82,6 +82,7 @@ from .limbs import (
     torso_flip,
     trunk_keypoints,
 )
+from .paths import min_sum_path, span_gaps
 from .rest import rest_start
 
 __all__ = ["UNCERTAIN_GAP", "HypothesisReport", "Span", "frame_costs", "hypotheses_start", "min_sum_path",
@@ -196,57 +197,6 @@ def _keyframe_targets(problem, T):
             P[f, fig.keypoint_index([n])[0]] = x
         sig[f] = min(sig[f], float(k.sigma))
     return P, sig
-
-
-def min_sum_path(unary, trans):
-    """Min-sum over paths h_0..h_{N-1} of sum_t unary[t, h_t] + sum_t trans[t, h_t,
-    h_{t+1}] (``unary`` (N, H), ``trans`` (N-1, H, H)). Returns (best path (N,),
-    min-marginals (N, H): the cost of the best path through each state)."""
-    N, H = unary.shape
-    F = np.empty((N, H))
-    arg = np.zeros((N, H), int)
-    F[0] = unary[0]
-    for t in range(1, N):
-        c = F[t - 1][:, None] + trans[t - 1]
-        arg[t] = np.argmin(c, axis=0)
-        F[t] = c.min(axis=0) + unary[t]
-    B = np.zeros((N, H))
-    for t in range(N - 2, -1, -1):
-        B[t] = (trans[t] + (unary[t + 1] + B[t + 1])[None, :]).min(axis=1)
-    path = np.empty(N, int)
-    path[-1] = int(np.argmin(F[-1]))
-    for t in range(N - 1, 0, -1):
-        path[t - 1] = arg[t][path[t]]
-    return path, F + B
-
-
-def span_gaps(unary, trans, path):
-    """Per run of one state on ``path`` (a *span*, DP frames [a, b)): the extra cost of the
-    best path that puts the whole span in another single state, the rest free.
-    Returns ``[(a, b, state, gap)]``."""
-    N, H = unary.shape
-    F = np.empty((N, H))
-    F[0] = unary[0]
-    for t in range(1, N):
-        F[t] = (F[t - 1][:, None] + trans[t - 1]).min(axis=0) + unary[t]
-    B = np.zeros((N, H))
-    for t in range(N - 2, -1, -1):
-        B[t] = (trans[t] + (unary[t + 1] + B[t + 1])[None, :]).min(axis=1)
-    best = float(F[-1].min())
-    cum = np.vstack([np.zeros(H), np.cumsum(unary, axis=0)])
-    out, a = [], 0
-    for t in range(1, N + 1):
-        if t < N and path[t] == path[a]:
-            continue
-        b, h = t, int(path[a])
-        inner = cum[b] - cum[a]  # (H,) the span held in each state
-        into = (F[a - 1][:, None] + trans[a - 1]).min(axis=0) if a > 0 else np.zeros(H)
-        out_of = (trans[b - 1] + (unary[b] + B[b])[None, :]).min(axis=1) if b < N else np.zeros(H)
-        alt = into + inner + out_of
-        alt[h] = np.inf
-        out.append((a, b, h, float(alt.min() - best) if H > 1 else float("inf")))
-        a = t
-    return out
 
 
 @dataclass
@@ -384,12 +334,21 @@ def _score_states(problem, chains, frames, Q_base, D, options, sigma_pull_m, sig
     return _Scores(Qs, unary, dirs)
 
 
-def _limb_search(problem, Q_base, uv, passes, sub_frames, step, switch_sigma, ik_options, sigma_pull_m):
+def _depth_acceleration(z, lengths, dt, sigma):
+    """(N-2, H, H, H) the smoothing prior's cost of three consecutive states of a chain
+    from its segments' signed depths ``z`` (N, H, S), metres: the depth acceleration of
+    each segment's end against ``sigma`` (rad/s^2) times its length, integrated over ``dt``."""
+    d2 = z[:-2, :, None, None] - 2.0 * z[1:-1, None, :, None] + z[2:, None, None, :]
+    return 0.5 * np.sum((d2 / (dt * dt * sigma * np.asarray(lengths))) ** 2, axis=-1) * dt
+
+
+def _limb_search(problem, Q_base, uv, passes, sub_frames, step, switch_sigma, ik_options, sigma_pull_m, acc_weight=0.0):
     """The limb hypotheses on one base trajectory: returns (Q, labels, states, gaps, spans)."""
     fig, cam = problem.figure, problem.camera
+    fps = float(problem.fps or 30.0)
     T = len(Q_base)
     t_all = np.arange(T)
-    window = max(1, int(round(0.15 * float(problem.fps or 30.0) / step)))
+    window = max(1, int(round(0.15 * fps / step)))
     Q = Q_base.copy()
     labels, all_states, all_gaps, spans = [], [], [], []
     for chains in passes:
@@ -415,7 +374,11 @@ def _limb_search(problem, Q_base, uv, passes, sub_frames, step, switch_sigma, ik
             flip = bits[:, None, :] != bits[None, :, :]  # (H, H, S)
             jump = np.minimum(half[:-1, :, None, :], half[1:, None, :, :])  # (N-1, H, H, S)
             trans = 0.5 * np.sum(flip[None] * (jump / (switch_sigma * lengths[ci])) ** 2, axis=-1)
-            path, marg = min_sum_path(U, trans)
+            acc = None
+            if acc_weight > 0:
+                acc = acc_weight * _depth_acceleration(np.where(bits[None], half, -half), lengths[ci], step / fps,
+                                                       problem.weights.acc_joints)
+            path, marg = min_sum_path(U, trans, acc)
             chosen = np.take_along_axis(marg, path[:, None], axis=1)[:, 0]
             other = np.where(np.arange(H)[None, :] == path[:, None], np.inf, marg).min(axis=1)
             frame_of = np.append(sub_frames, T)
@@ -430,7 +393,7 @@ def _limb_search(problem, Q_base, uv, passes, sub_frames, step, switch_sigma, ik
             all_states.append(states)
             all_gaps.append(gaps)
             spans += [Span(c.label, int(frame_of[a]), int(frame_of[b]) if b < N else T, h, g)
-                      for a, b, h, g in span_gaps(U, trans, path)]
+                      for a, b, h, g in span_gaps(U, trans, path, acc)]
     return fig.clamp(Q, margin=1e-3), labels, all_states, all_gaps, spans
 
 
@@ -448,6 +411,7 @@ def search_hypotheses(
     planarity: bool = True,
     threshold: float = UNCERTAIN_GAP,
     splice_sigma_m: float = 0.05,
+    acc_weight: float = 0.0,
 ) -> tuple[np.ndarray, HypothesisReport]:
     """The multi-hypothesis start and its report (see the module docstring).
 
@@ -464,6 +428,16 @@ def search_hypotheses(
         one frame to the next pays ``0.5 (|dz| / (switch_sigma L))^2``, ``|dz|`` the depth
         of its end from its start (half the jump), ``L`` its length: free where it crosses
         the image plane, dear elsewhere.
+    acc_weight : with a positive weight the path also pays, times it, the smoothing prior's
+        cost of each segment's depth *acceleration* over three sub-sampled frames
+        (``weights.acc_joints`` times the segment's length as its standard deviation): a
+        limb that bounces off the image plane instead of crossing it pays for the kink
+        (second-order dynamic programming, :mod:`.paths`). Off by default: on bench_real
+        (weight 1) it changed the walk and the run with first and last keyframes by under
+        0.1 mm, the run without keyframes from 28.8 / 5.5 to 31.2 / 6.1 (PA-MPJPE mm /
+        flips %, mean of 45 and 60 degrees), the dance by -13 to +16 mm per run (within its
+        run-to-run spread); on the lab run it found a MAP cost 25 nats *below* the solve
+        started from the truth, with 22 % of the limb segments flipped (bench/README.md).
     sigma_pull_m : how hard the inverse kinematics holds a state's depth (metres).
     torso : also try the trunk's reflection (:func:`~pinrecon.starts.limbs.torso_flip`).
     planarity : with keyframes, the planarity seed (:mod:`pinrecon.planarity.seed`) competes
@@ -508,7 +482,7 @@ def search_hypotheses(
     results = []
     for k, Qb in enumerate(bases):
         Q0, labels, states, gaps, spans = _limb_search(problem, Qb, uv, passes, sub_frames, step, switch_sigma,
-                                                       ik_options, sigma_pull_m)
+                                                       ik_options, sigma_pull_m, acc_weight)
         res = solve(problem, Q0, final_options, active=problem.active)
         results.append((res.cost, fig.normalize(res.x), labels, states, gaps, spans, Qb, "trunk flipped" if k else "limbs"))
     switches = []
