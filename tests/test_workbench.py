@@ -254,6 +254,7 @@ def test_uncertain_spans_come_from_the_result_and_are_drawn(case, start):
     from dataclasses import replace
 
     from pinrecon.workbench.panels import UNCERTAIN_RGB, timeline
+    from pinrecon.workbench.session import UNFAMILIAR
 
     fig, Q, cam, tracks, keys = case
     extras = dict(start.extras)
@@ -263,9 +264,15 @@ def test_uncertain_spans_come_from_the_result_and_are_drawn(case, start):
         hypothesis_spans=np.array([[1.0, 20.0, 45.0, 1.0, 0.5], [0.0, 60.0, 90.0, 0.0, 9.0]]),
         hypothesis_threshold=np.float64(2.0),
     )
+    for k in ("prior_distance", "prior_distance_limit", "prior_unfamiliar_spans"):
+        extras.pop(k, None)
     s = Session(fig, tracks, cam, keys, result=replace(start, extras=extras), weights=WEIGHTS)
     assert s.uncertain_spans() == [(20, 45, "right_hip-right_knee-right_ankle")]
-    assert Session(fig, tracks, cam, keys, result=start, weights=WEIGHTS).uncertain_spans() == []
+    assert Session(fig, tracks, cam, keys, result=replace(start, extras={}), weights=WEIGHTS).uncertain_spans() == []
+    # poses the pose prior does not know are uncertain for every limb
+    both = Session(fig, tracks, cam, keys, weights=WEIGHTS,
+                   result=replace(start, extras={**extras, "prior_unfamiliar_spans": np.array([[50, 58]])}))
+    assert both.uncertain_spans() == [(20, 45, "right_hip-right_knee-right_ankle"), (50, 58, UNFAMILIAR)]
     W, H = 480, 90
     img = timeline(np.ones(s.n_frames), 0, uncertain=[(a, b) for a, b, _ in s.uncertain_spans()], size=(W, H))
     row = img[H - 17]

@@ -101,9 +101,15 @@ def main(argv=None):
     X = Q[:, [m.idx_qs[j] for j in moving]]
     C = np.cov(X, rowvar=False, bias=True)
     C = (1.0 - a.shrink) * C + a.shrink * np.diag(np.diag(C)) + 1e-4 * np.eye(len(moving))
+    # how far the clips' own frames lie from the mean (Mahalanobis distance, standard
+    # deviations): the yardstick of a pose the prior does not know (pinrecon.unfamiliar)
+    D = X - X.mean(axis=0)
+    dist = np.sqrt(np.einsum("ij,ij->i", D @ np.linalg.inv(C), D))
     out = {"figure": "Figure.human()", "units": "rad", "joints": joints,
            "correlated": {"joints": [m.names[j] for j in moving], "shrink": a.shrink,
-                          "covariance": [[round(float(v), 7) for v in row] for row in C]},
+                          "covariance": [[round(float(v), 7) for v in row] for row in C],
+                          "distance_quantiles": {str(p): round(float(np.percentile(dist, p)), 3)
+                                                 for p in (50, 90, 99, 100)}},
            "clips": clips, "frames": int(len(Q)), "min_std_rad": a.min_std, "skipped": a.skip,
            "made_by": "tools/fit_pose_prior.py"}
     Path(a.out).parent.mkdir(parents=True, exist_ok=True)

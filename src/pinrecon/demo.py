@@ -72,6 +72,7 @@ class DemoSummary:
             ("left/right swaps repaired", f"{v.get('repaired', 0)} of {v.get('swapped', 0)} injected", "-"),
             ("outliers reported", f"{v.get('outliers', 0)} ({v.get('injected', 0)} injected)", "-"),
             ("uncertain limb spans", f"{v.get('uncertain', 0)} of {v.get('spans', 0)}", "-"),
+            ("poses unlike the pose prior", f"{v.get('unfamiliar', 0)} of {v.get('frames', 0)} frames", "-"),
             ("mean reprojection error", f"{v.get('reprojection_px', float('nan')):.2f} px", f"{self.reprojection_px:.2f} px"),
         ]
         w = max(len(r[0]) for r in rows)
@@ -124,6 +125,8 @@ def run_video(out_dir, *, frames: int | None = None, seed: int = 0, callback=Non
                         & set(np.asarray(log["swapped_frames"]).tolist())),
         "swapped": len(log["swapped_frames"]), "outliers": len(x.get("outlier_frames", [])),
         "injected": len(log["outliers"]), "spans": len(spans), "uncertain": int(np.sum(spans[:, 4] < thr)),
+        "unfamiliar": int(np.sum(np.asarray(x.get("prior_distance", []), float)
+                                 > float(x.get("prior_distance_limit", np.inf)))),
         "reprojection_px": float(np.nanmean(res.reprojection_error_px)),
         "files": [out / "tracks.json", out / "camera.json", out / "result.npz"],
     }

@@ -45,6 +45,7 @@ from .starts.camera_auto import (
     settle_focal,
 )
 from .tracks import Keyframe, Keyframes, Markers, Tracks
+from .unfamiliar import unfamiliar_poses
 from .windowed import solve_windowed, windowed_length
 
 __all__ = [
@@ -423,4 +424,7 @@ def _package(problem: ReconstructionProblem, res: SolveResult, auto: dict | None
     )
     for report in getattr(problem, "reports", {}).values():  # the hypotheses start, the fault stage
         result.extras.update(report.to_extras())
+    unfamiliar = unfamiliar_poses(problem, Q)  # where the pose prior extrapolates
+    if unfamiliar is not None:
+        result.extras.update(unfamiliar.to_extras())
     return result

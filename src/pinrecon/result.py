@@ -14,8 +14,8 @@ import numpy as np
 from .cameras import camera_from_dict
 from .contact import FOOT_EXTRAS, FootContact, foot_metrics
 
-#: extras of the hypotheses start and the fault stage, kept by :func:`load_result`
-FAULT_EXTRAS_PREFIXES = ("hypothesis_", "repaired_", "outlier_")
+#: extras of the hypotheses start, the fault stage and the pose prior's check, kept by :func:`load_result`
+FAULT_EXTRAS_PREFIXES = ("hypothesis_", "repaired_", "outlier_", "prior_")
 from .errors import InputError
 from .figure import Figure, parse_keypoint_entries
 from .io.results import load_result_npz, save_result_npz
@@ -130,9 +130,10 @@ class Result:
         return "\n".join(lines)
 
     def faults_summary(self, limit: int = 6) -> list[str]:
-        """Uncertain limb-reflection spans (the hypotheses start), repaired left/right swaps
-        and outliers (the fault stage), from ``extras``; frames of the reconstruction
-        (spans) and of the tracks (repairs, outliers)."""
+        """Uncertain limb-reflection spans (the hypotheses start), poses the pose prior does
+        not know (:mod:`pinrecon.unfamiliar`), repaired left/right swaps and outliers (the
+        fault stage), from ``extras``; frames of the reconstruction (spans) and of the
+        tracks (repairs, outliers)."""
         x, lines = self.extras, []
         if "hypothesis_spans" in x:
             chains, spans, thr = hypothesis_spans(x)
@@ -144,6 +145,17 @@ class Result:
                              f"{(b - 1) / self.fps:.2f} s), gap {gap:.1f}")
             if len(unc) > limit:
                 lines.append(f"  ... and {len(unc) - limit} more")
+        if len(x.get("prior_unfamiliar_spans", ())):
+            sp, d = np.asarray(x["prior_unfamiliar_spans"], int), np.asarray(x["prior_distance"], float)
+            lim, n = float(x["prior_distance_limit"]), int(np.sum(d > float(x["prior_distance_limit"])))
+            lines.append(f"poses unlike the pose prior's clips in {n} of {len(d)} frames ({100 * n / len(d):.0f} %; "
+                         f"Mahalanobis distance > {lim:.1f}, their 99th percentile): limb depths there are the "
+                         "prior's extrapolation and may be mirrored; 3D keyframes there would decide them")
+            for a, b in sp[np.argsort([-d[a:b].max() for a, b in sp])][:limit]:
+                lines.append(f"  frames {a}-{b - 1} ({a / self.fps:.2f}-{(b - 1) / self.fps:.2f} s), "
+                             f"distance up to {d[a:b].max():.1f}")
+            if len(sp) > limit:
+                lines.append(f"  ... and {len(sp) - limit} more")
         if "repaired_frames" in x:
             fr = np.asarray(x["repaired_frames"], int)
             shown = ", ".join(str(f) for f in fr[:20]) + (" ..." if len(fr) > 20 else "")

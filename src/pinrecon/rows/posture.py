@@ -23,7 +23,8 @@ import numpy as np
 from .._resources import model_path
 from .base import RowBlock, RowKind, State
 
-__all__ = ["PosePrior", "Posture", "pose_prior", "pose_prior_covariance", "posture_row", "rest_pose"]
+__all__ = ["PosePrior", "Posture", "pose_prior", "pose_prior_covariance", "pose_prior_distances", "posture_row",
+           "rest_pose"]
 
 
 class Posture(RowKind):
@@ -84,6 +85,7 @@ class PosePrior(Posture):
         self.mean_corr = np.asarray(q_ref, float)[self.qcorr]
         L = np.linalg.cholesky(np.linalg.inv(np.asarray(cov, float)))  # cov^-1 = L L^T
         self.A = L.T / float(scale)
+        self.scale = float(scale)
         pos = {int(q): k for k, q in enumerate(self.qidx)}
         corr = set(self.qcorr.tolist())
         self.diag = np.array([k for k, q in enumerate(self.qidx) if int(q) not in corr], int)
@@ -127,6 +129,11 @@ class PosePrior(Posture):
         out = m <= k
         return np.where(out, 0.5 * m**2, k * m - 0.5 * k**2), np.sqrt(np.where(out, 1.0, k / np.maximum(m, 1e-300)))
 
+    def distances(self, Q) -> np.ndarray:
+        """(T,) each frame's Mahalanobis distance of the correlated joints from the mean,
+        in standard deviations of the prior's clips (not in units of ``scale``)."""
+        return self.scale * np.linalg.norm(self._residuals(np.asarray(Q, float))[1], axis=1)
+
     def frame_costs(self, Q) -> np.ndarray:
         """(T,) each frame's cost of trajectory ``Q`` (T, nq) under this prior (the robust
         loss itself, not the reweighted rows' 0.5 |r|^2)."""
@@ -158,12 +165,19 @@ def pose_prior_covariance(figure) -> tuple[np.ndarray, np.ndarray]:
     return np.array([m.idx_qs[jid[n]] for n in names], int), cov
 
 
+def pose_prior_distances() -> dict[str, float]:
+    """Percentiles (``"50"``, ``"90"``, ``"99"``, ``"100"``) of the Mahalanobis distance
+    (:meth:`PosePrior.distances`) of the prior's own clips' frames from its mean."""
+    return dict(_pose_prior_file()["distances"])
+
+
 @functools.lru_cache(maxsize=1)
 def _pose_prior_file() -> dict:
     data = json.loads(model_path("priors", "human_pose.json").read_text())
     corr = data["correlated"]
     return {"joints": {k: (float(v[0]), float(v[1])) for k, v in data["joints"].items()},
-            "correlated": (list(corr["joints"]), np.array(corr["covariance"], float))}
+            "correlated": (list(corr["joints"]), np.array(corr["covariance"], float)),
+            "distances": {k: float(v) for k, v in corr.get("distance_quantiles", {}).items()}}
 
 
 def posture_row(figure, n_frames: int, weights, active=None) -> Posture | None:

@@ -520,13 +520,23 @@ class Session:
         return out
 
 
+#: the label of a span whose poses the pose prior does not know (:mod:`pinrecon.unfamiliar`)
+UNFAMILIAR = "all limbs: pose unlike the prior's clips"
+
+
 def _uncertain_spans(result, n_frames: int) -> list[tuple[int, int, str]]:
     """``(start, stop, chain)`` of the spans the hypothesis search called uncertain
-    (:func:`pinrecon.result.hypothesis_spans`), clipped to the frames."""
-    chains, spans, thr = hypothesis_spans(getattr(result, "extras", None) or {})
+    (:func:`pinrecon.result.hypothesis_spans`) and of the poses the pose prior does not
+    know (``prior_unfamiliar_spans``, labelled :data:`UNFAMILIAR`), clipped to the frames."""
+    extras = getattr(result, "extras", None) or {}
+    chains, spans, thr = hypothesis_spans(extras)
     out = []
     for c, a, b, _state, gap in spans:
         a, b = int(max(0, a)), int(min(n_frames, b))
         if gap < thr and b > a:
             out.append((a, b, chains[int(c)] if 0 <= int(c) < len(chains) else f"chain {int(c)}"))
+    for a, b in np.asarray(extras.get("prior_unfamiliar_spans", np.zeros((0, 2))), int).reshape(-1, 2):
+        a, b = int(max(0, a)), int(min(n_frames, b))
+        if b > a:
+            out.append((a, b, UNFAMILIAR))
     return sorted(out)

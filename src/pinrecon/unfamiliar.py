@@ -1,0 +1,73 @@
+"""Poses the pose prior does not know: where a result's limb depths are an extrapolation.
+
+Without 3D keyframes, a limb's two depth reflections are told apart by the figure's joint
+limits, the smoothing prior and, for the generic human, its pose prior learned from motion
+capture (``Weights.pose_prior``; clips of walking, running, jumping and basketball:
+``models/priors/README.md``). Where the subject's pose is unlike every pose of those clips
+the prior still ranks the reflections, but its ranking is an extrapolation: on the bundled
+dance (a double pirouette, bench_real), solved from the truth, the prior preferred the
+mirrored limbs by 1535 nats, and the hypothesis search's own cost gaps, which take the
+prior at its word, called 1 % of the flipped limb frames uncertain.
+
+This check says so instead of staying silent. A frame is *unfamiliar* when the
+Mahalanobis distance of its correlated joints from the prior's mean
+(:meth:`~pinrecon.rows.posture.PosePrior.distances`, in standard deviations) exceeds the
+distance below which 99 % of the prior's own clips' frames lie (stored with the prior by
+``tools/fit_pose_prior.py``: 9.0). Measured on ``bench/bench_real.py``'s detector cases
+(README there): every frame of the dance, none of the walk's or the run's.
+
+:func:`unfamiliar_poses` is run by the pipeline on the solved trajectory; ``Result.extras``
+carries ``prior_distance`` (per frame), ``prior_distance_limit`` and
+``prior_unfamiliar_spans`` ((n, 2) [start, stop) reconstruction frames), and the summary
+names the spans.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .rows.posture import PosePrior, pose_prior_distances
+
+__all__ = ["UnfamiliarPoses", "unfamiliar_poses"]
+
+
+@dataclass
+class UnfamiliarPoses:
+    """Frames whose pose lies beyond ``limit`` (Mahalanobis distance, standard deviations)
+    from the pose prior's mean; ``spans`` [start, stop) reconstruction frames."""
+
+    distance: np.ndarray
+    limit: float
+    spans: list[tuple[int, int]] = field(default_factory=list)
+
+    @property
+    def share(self) -> float:
+        """Share of the frames beyond the limit."""
+        return float(np.mean(self.distance > self.limit)) if len(self.distance) else 0.0
+
+    def to_extras(self) -> dict:
+        return {"prior_distance": np.asarray(self.distance, float), "prior_distance_limit": np.float64(self.limit),
+                "prior_unfamiliar_spans": np.array(self.spans, int).reshape(-1, 2)}
+
+
+def unfamiliar_poses(problem, Q, *, quantile: str = "99", merge_s: float = 0.2) -> UnfamiliarPoses | None:
+    """The frames of trajectory ``Q`` whose pose the problem's pose prior does not know
+    (beyond its clips' ``quantile`` percentile of distance); runs closer than ``merge_s``
+    seconds are one span. None when the problem has no learned pose prior (figures other
+    than the generic human, ``Weights(pose_prior=None)``)."""
+    prior = next((r for r in problem.rows if isinstance(r, PosePrior)), None)
+    limit = pose_prior_distances().get(quantile)
+    if prior is None or limit is None:
+        return None
+    d = prior.distances(Q)
+    far = np.flatnonzero(d > limit)
+    spans: list[tuple[int, int]] = []
+    gap = max(1, round(merge_s * float(problem.fps or 30.0)))
+    for f in far.tolist():
+        if spans and f - spans[-1][1] < gap:
+            spans[-1] = (spans[-1][0], f + 1)
+        else:
+            spans.append((f, f + 1))
+    return UnfamiliarPoses(d, float(limit), spans)
