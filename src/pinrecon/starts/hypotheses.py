@@ -435,8 +435,8 @@ def search_hypotheses(
         (second-order dynamic programming, :mod:`.paths`). Off by default: on bench_real
         (weight 1) it changed the walk and the run with first and last keyframes by under
         0.1 mm, the run without keyframes from 28.8 / 5.5 to 31.2 / 6.1 (PA-MPJPE mm /
-        flips %, mean of 45 and 60 degrees), the dance by -13 to +16 mm per run (within its
-        run-to-run spread); on the lab run it found a MAP cost 25 nats *below* the solve
+        flips %, mean of 45 and 60 degrees), the dance by -16 to +10 mm on three runs (within
+        its run-to-run spread); on the lab run it found a MAP cost 25 nats *below* the solve
         started from the truth, with 22 % of the limb segments flipped (bench/README.md).
     sigma_pull_m : how hard the inverse kinematics holds a state's depth (metres).
     torso : also try the trunk's reflection (:func:`~pinrecon.starts.limbs.torso_flip`).
