@@ -39,6 +39,9 @@ that smoother, made tractable by the figure's structure (geometry in :mod:`.limb
 4. **Path.** Dynamic programming over frames (sub-sampled to ``rate_hz``) picks the
    cheapest path per limb; forward and backward passes give every state's min-marginal
    cost. The limb's joints follow the chosen states' poses (interpolated in between).
+   With ``acc_weight`` the path also pays each segment's depth acceleration over three
+   frames, so a limb bouncing off the image plane costs what the smoothing prior charges
+   (second-order dynamic programming, :mod:`.paths`; off by default, measured mixed).
 5. **Splice.** The trunk's reflection may change within a clip (a turn, a pirouette: the
    trunk passes edge-on to the camera, where both reflections look alike). The two
    solved trunk candidates are spliced per frame (:func:`splice_path`): dynamic
