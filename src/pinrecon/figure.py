@@ -251,19 +251,26 @@ class Figure:
     def with_limits(self, limits: Mapping[str, tuple[float, float]] | str | os.PathLike) -> Figure:
         """The same figure with the given joint limits (radians) replacing its own; joints
         not named keep theirs. ``limits`` may be a file (:func:`pinrecon.joint_limits.load_limits`:
-        a limits JSON, or a CMU ASF skeleton for a BVH figure)."""
+        a limits JSON, or a CMU ASF skeleton for a BVH figure, whose one-DOF bones also
+        become hinges: ``meta["hinges"]``, :mod:`pinrecon.rows.hinges`)."""
         from .joint_limits import load_limits, urdf_with_limits
 
+        meta = self.meta
         if isinstance(limits, (str, os.PathLike)):
             src = limits
             limits = load_limits(limits, self.joint_names)
             unknown = [n for n in limits if n not in self._joint_ids]
             if unknown:
                 raise UnknownNameError("joint", unknown, self.joint_names, file=src, field="limits")
+            if str(src).lower().endswith(".asf"):  # its one-DOF bones: hinges (pinrecon.rows.hinges)
+                from .io.asf import bvh_hinges_from_asf, read_asf
+
+                hinges = bvh_hinges_from_asf(read_asf(src), self.joint_names)
+                meta = {**(meta or {}), "hinges": hinges} if hinges else meta
         given = {str(k): (float(a), float(b)) for k, (a, b) in dict(limits).items()}
         xml = urdf_with_limits(self.urdf_xml, given) if self.urdf_xml else None  # saved URDFs keep them
         return Figure(self.model, self.keypoints_def, name=self.name, urdf_xml=xml, limits={**self.limits_dict(), **given},
-                      source=self.source, floating=self.floating, meta=self.meta)
+                      source=self.source, floating=self.floating, meta=meta)
 
     def _with_keypoints(self, keypoints):
         return Figure(

@@ -260,3 +260,29 @@ def bvh_limits_from_asf(skeleton: AsfSkeleton, joint_names: Iterable[str], *, bo
                 lo, hi = lo - 360.0, hi - 360.0  # the representation holding (or nearest) the rest angle 0
             out[f"{bvh}_{axis}rotation"] = (np.radians(lo - margin_deg), np.radians(hi + margin_deg))
     return out
+
+
+def bvh_hinges_from_asf(skeleton: AsfSkeleton, joint_names: Iterable[str], *, bone_map: Mapping[str, str] | None = None,
+                        skip_bones: Iterable[str] | None = None) -> dict[str, list[float]]:
+    """The BVH joints whose ASF bone turns about one axis (one rotational DOF: CMU's knees,
+    elbows, toes): ``{joint: axis}``, the unit axis ``C e_d`` (``C`` the bone's ``axis``
+    frame, ``d`` its DOF) in the world-aligned rest frame in which the joint's channels
+    compose ``C M C^-1``. Only joints with three rotation channels; ``bone_map`` and
+    ``skip_bones`` as in :func:`bvh_limits_from_asf`. :class:`pinrecon.rows.hinges.Hinges`
+    holds the joints on them."""
+    bone_map = dict(CMU_BVH_FROM_ASF if bone_map is None else bone_map)
+    skip = set(NO_CAPTURED_LIMITS if skip_bones is None else skip_bones)
+    channels: dict[str, int] = {}
+    for jn in joint_names:
+        m = re.fullmatch(r"(.+)_([XYZ])rotation", jn)
+        if m:
+            channels[m.group(1)] = channels.get(m.group(1), 0) + 1
+    out = {}
+    for bname, bone in skeleton.bones.items():
+        bvh = bone_map.get(bname)
+        rot = [d for d in bone.dof if d in ("rx", "ry", "rz")]
+        if bname in skip or bvh is None or channels.get(bvh) != 3 or len(rot) != 1:
+            continue
+        a = _axis_matrix(bone) @ np.eye(3)["xyz".index(rot[0][1])]
+        out[bvh] = [round(float(v), 9) for v in a]
+    return out
