@@ -14,7 +14,8 @@ Mahalanobis distance of its correlated joints from the prior's mean
 (:meth:`~pinrecon.rows.posture.PosePrior.distances`, in standard deviations) exceeds the
 distance below which 99 % of the prior's own clips' frames lie (stored with the prior by
 ``tools/fit_pose_prior.py``: 9.0). Measured on ``bench/bench_real.py``'s detector cases
-(README there): every frame of the dance, none of the walk's or the run's.
+(README there): 79-90 % of the dance's frames, none of the walk's or the run's; every frame
+of Pose2Sim's real balancing trial.
 
 :func:`unfamiliar_poses` is run by the pipeline on the solved trajectory; ``Result.extras``
 carries ``prior_distance`` (per frame), ``prior_distance_limit`` and
