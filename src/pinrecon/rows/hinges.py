@@ -16,8 +16,9 @@ the channels' rotations in their order and ``w = log(R)`` its rotation vector,
     r = B^T w / sigma,      B = [u, v] an orthonormal basis of the plane normal to ``a``,
 
 two rows per hinge and frame, zero exactly when ``R`` turns about ``a``. The Jacobian is
-analytic: ``dw = Jlog3(R) omega`` (``pin.Jlog3``, ``omega`` the body-frame angular
-velocity), ``omega = R_2^T R_1^T e_0 dt_0 + R_2^T e_1 dt_1 + e_2 dt_2``.
+analytic: ``dw = Jlog3(R) omega`` (Pinocchio's ``Jlog3``, written vectorised over the
+frames; ``omega`` the body-frame angular velocity),
+``omega = R_2^T R_1^T e_0 dt_0 + R_2^T e_1 dt_1 + e_2 dt_2``.
 """
 
 from __future__ import annotations
@@ -25,8 +26,9 @@ from __future__ import annotations
 import re
 
 import numpy as np
-import pinocchio as pin
+from scipy.spatial.transform import Rotation
 
+from ..rotations import euler_to_matrix
 from .base import RowBlock, RowKind, State
 
 __all__ = ["Hinges", "hinge_row"]
@@ -34,11 +36,17 @@ __all__ = ["Hinges", "hinge_row"]
 _AXES = {"X": np.array([1.0, 0.0, 0.0]), "Y": np.array([0.0, 1.0, 0.0]), "Z": np.array([0.0, 0.0, 1.0])}
 
 
-def _rot(e, t):
-    """(N, 3, 3) rotations by angles ``t`` (N,) about the unit axis ``e``."""
-    K = np.array([[0.0, -e[2], e[1]], [e[2], 0.0, -e[0]], [-e[1], e[0], 0.0]])
-    s, c = np.sin(t)[:, None, None], np.cos(t)[:, None, None]
-    return np.eye(3) + s * K + (1.0 - c) * (K @ K)
+def _jlog3(w):
+    """(..., 3, 3) the derivative of ``log(R exp(d))`` at ``d = 0`` for ``R = exp(w)``
+    (``pin.Jlog3``, vectorised): ``I + [w]/2 + (1/t^2 - (1 + cos t) / (2 t sin t)) [w]^2``."""
+    t = np.linalg.norm(w, axis=-1)
+    K = np.zeros(w.shape[:-1] + (3, 3))
+    K[..., 0, 1], K[..., 0, 2], K[..., 1, 2] = -w[..., 2], w[..., 1], -w[..., 0]
+    K -= np.swapaxes(K, -1, -2)
+    small = t < 1e-4
+    ts = np.where(small, 1.0, t)
+    c = np.where(small, 1.0 / 12.0 + t**2 / 720.0, 1.0 / ts**2 - (1.0 + np.cos(ts)) / (2.0 * ts * np.sin(ts)))
+    return np.eye(3) + 0.5 * K + c[..., None, None] * (K @ K)
 
 
 class Hinges(RowKind):
@@ -64,7 +72,7 @@ class Hinges(RowKind):
             bases.append(np.stack([u, np.cross(a, u)]))  # (2, 3)
             qidx.append([m.idx_qs[j] for j in ids])
             cols.append([m.idx_vs[j] for j in ids])
-            axes.append([_AXES[m.names[j][-9]] for j in ids])
+            axes.append("".join(m.names[j][-9] for j in ids))  # the channels' letters, in order
             labels.append(joint)
         self.qidx = np.array(qidx, int).reshape(-1, 3)
         self.cols = np.array(cols, int).ravel()
@@ -79,17 +87,16 @@ class Hinges(RowKind):
         N, H = len(self.frames), len(self.joints)
         r = np.zeros((N, 2 * H))
         J = np.zeros((N, 1, 2 * H, 3 * H)) if jacobian else None
-        for h in range(H):
-            e0, e1, e2 = self.axes[h]
-            t = Q[:, self.qidx[h]]
-            R1, R2 = _rot(e1, t[:, 1]), _rot(e2, t[:, 2])
-            R = _rot(e0, t[:, 0]) @ R1 @ R2
-            for n in range(N):
-                w = pin.log3(R[n])
-                r[n, 2 * h : 2 * h + 2] = self.bases[h] @ w / self.sigma
-                if jacobian:
-                    W = np.stack([R2[n].T @ R1[n].T @ e0, R2[n].T @ e1, e2], axis=1)  # (3, 3) body velocity
-                    J[n, 0, 2 * h : 2 * h + 2, 3 * h : 3 * h + 3] = self.bases[h] @ pin.Jlog3(R[n]) @ W / self.sigma
+        for h, seq in enumerate(self.axes):
+            deg = np.degrees(Q[:, self.qidx[h]])
+            w = Rotation.from_matrix(euler_to_matrix(seq, deg)).as_rotvec()  # (N, 3) log(R_0 R_1 R_2)
+            r[:, 2 * h : 2 * h + 2] = w @ self.bases[h].T / self.sigma
+            if jacobian:
+                R1, R2 = euler_to_matrix(seq[1], deg[:, 1:2]), euler_to_matrix(seq[2], deg[:, 2:3])
+                e0, e1, e2 = (_AXES[c] for c in seq)
+                W = np.stack([np.swapaxes(R1 @ R2, 1, 2) @ e0, np.swapaxes(R2, 1, 2) @ e1,
+                              np.broadcast_to(e2, (N, 3))], axis=2)  # (N, 3, 3) body velocity per channel
+                J[:, 0, 2 * h : 2 * h + 2, 3 * h : 3 * h + 3] = self.bases[h] @ _jlog3(w) @ W / self.sigma
         return RowBlock(self.frames[:, None], r, J, self.cols, self.name)
 
 
