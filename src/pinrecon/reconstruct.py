@@ -35,7 +35,7 @@ from .problem import (
 )
 from .result import Result, load_result
 from .rows import Measurement2D
-from .solver import SolveResult, SolverOptions, solve
+from .solver import SolveResult, SolverOptions, globals_of, solve
 from .starts import available_starts, get_start, initial_trajectory
 from .starts.camera_auto import (
     AutoCamera,
@@ -387,8 +387,8 @@ def _package(problem: ReconstructionProblem, res: SolveResult, auto: dict | None
     """The solved trajectory as a :class:`Result`: keypoints and per-frame reprojection
     error, over all cameras and per camera. With global unknowns: the calibrated figure,
     its keypoints, the fitted cameras and ``calibration``."""
-    g = getattr(res, "g", None)
-    g = problem.g0 if g is None or not len(g) else g
+    g = globals_of(res)
+    g = problem.g0 if g is None else g
     Q = problem.figure.normalize(res.x)
     figure = problem.figure_at(g)
     P = figure.keypoints(Q)

@@ -206,6 +206,17 @@ def _euler(R: np.ndarray, order: str) -> np.ndarray:
         return Rotation.from_matrix(R).as_euler(order.upper(), degrees=True)
 
 
+def _rotation_channels(joint_names: Iterable[str]) -> dict[str, list[str]]:
+    """A BVH figure's rotation channels per joint: ``J_Zrotation``, ``J_Yrotation``,
+    ``J_Xrotation`` -> ``{"J": ["Z", "Y", "X"]}`` (in the names' order)."""
+    channels: dict[str, list[str]] = {}
+    for jn in joint_names:
+        m = re.fullmatch(r"(.+)_([XYZ])rotation", jn)
+        if m:
+            channels.setdefault(m.group(1), []).append(m.group(2))
+    return channels
+
+
 def bvh_limits_from_asf(skeleton: AsfSkeleton, joint_names: Iterable[str], *, bone_map: Mapping[str, str] | None = None,
                         skip_bones: Iterable[str] | None = None, samples: int = 13,
                         margin_deg: float = 5.0) -> dict[str, tuple[float, float]]:
@@ -223,11 +234,7 @@ def bvh_limits_from_asf(skeleton: AsfSkeleton, joint_names: Iterable[str], *, bo
     """
     bone_map = dict(CMU_BVH_FROM_ASF if bone_map is None else bone_map)
     skip = set(NO_CAPTURED_LIMITS if skip_bones is None else skip_bones)
-    channels: dict[str, list[str]] = {}
-    for jn in joint_names:
-        m = re.fullmatch(r"(.+)_([XYZ])rotation", jn)
-        if m:
-            channels.setdefault(m.group(1), []).append(m.group(2))
+    channels = _rotation_channels(joint_names)
     out: dict[str, tuple[float, float]] = {}
     for bname, bone in skeleton.bones.items():
         bvh = bone_map.get(bname)
@@ -272,16 +279,12 @@ def bvh_hinges_from_asf(skeleton: AsfSkeleton, joint_names: Iterable[str], *, bo
     holds the joints on them."""
     bone_map = dict(CMU_BVH_FROM_ASF if bone_map is None else bone_map)
     skip = set(NO_CAPTURED_LIMITS if skip_bones is None else skip_bones)
-    channels: dict[str, int] = {}
-    for jn in joint_names:
-        m = re.fullmatch(r"(.+)_([XYZ])rotation", jn)
-        if m:
-            channels[m.group(1)] = channels.get(m.group(1), 0) + 1
+    channels = _rotation_channels(joint_names)
     out = {}
     for bname, bone in skeleton.bones.items():
         bvh = bone_map.get(bname)
         rot = [d for d in bone.dof if d in ("rx", "ry", "rz")]
-        if bname in skip or bvh is None or channels.get(bvh) != 3 or len(rot) != 1:
+        if bname in skip or bvh is None or len(channels.get(bvh, ())) != 3 or len(rot) != 1:
             continue
         a = _axis_matrix(bone) @ np.eye(3)["xyz".index(rot[0][1])]
         out[bvh] = [round(float(v), 9) for v in a]

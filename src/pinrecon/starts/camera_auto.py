@@ -447,9 +447,11 @@ def focal_profile(problem, res, *, steps: Sequence[float] = PROFILE_STEPS, toler
 
 def _focal_of(problem, res):
     """(intrinsics, fitted g) of the solve's auto focal length, or None."""
+    from ..solver import globals_of
+
     views = getattr(problem, "views", None) or []
-    g = getattr(res, "g", None)
-    if not views or g is None or not len(g):
+    g = globals_of(res)
+    if not views or g is None:
         return None
     intr = views[0].measurement.intrinsics if views[0].measurement is not None else None
     if intr is None or intr.name != "log_focal":
