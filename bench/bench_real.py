@@ -96,21 +96,16 @@ def flagged(extras, P_est, P_true, camera, names):
     for a, b in np.asarray(extras.get("prior_unfamiliar_spans", np.zeros((0, 2))), int).reshape(-1, 2):
         unf[a:b] = True
     chains, spans, thr = hypothesis_spans(extras)
-    any_flag, n_flip, n_hit = unf.copy(), 0, 0
-    for a, b in SEGMENTS:
-        ia, ib = names.index(a), names.index(b)
+    flip, _ = metrics.flipped_segments(P_est, P_true, camera, [(names.index(a), names.index(b)) for a, b in SEGMENTS])
+    any_flag, n_hit = unf.copy(), 0
+    for k, (a, b) in enumerate(SEGMENTS):
         unsure = unf.copy()
         for c, s0, s1, _, gap in spans:
             if gap < thr and {a, b} <= set(chains[int(c)].split("-")):
                 unsure[int(s0):int(s1)] = True
         any_flag |= unsure
-        dz_e = camera.depth(P_est[:, ib]) - camera.depth(P_est[:, ia])
-        dz_t = camera.depth(P_true[:, ib]) - camera.depth(P_true[:, ia])
-        L = np.linalg.norm(P_true[:, ib] - P_true[:, ia], axis=-1)
-        flip = (np.abs(dz_t) > 0.1 * L) & (np.sign(dz_e) != np.sign(dz_t))  # as metrics.flip_rate
-        n_flip += int(flip.sum())
-        n_hit += int((flip & unsure).sum())
-    return 100.0 * n_hit / max(n_flip, 1), 100.0 * float(any_flag.mean())
+        n_hit += int((flip[:, k] & unsure).sum())
+    return 100.0 * n_hit / max(int(flip.sum()), 1), 100.0 * float(any_flag.mean())
 
 
 def detector_case(clip, azimuth, keyframes, frames=None, seed=0):

@@ -23,7 +23,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-__all__ = ["depth_offset", "flip_rate", "mpjpe", "mpjpe_depth_aligned", "pa_mpjpe", "procrustes", "root_error"]
+__all__ = ["depth_offset", "flip_rate", "flipped_segments", "mpjpe", "mpjpe_depth_aligned", "pa_mpjpe", "procrustes", "root_error"]
 
 
 def _pair(P_est, P_true):
@@ -88,12 +88,11 @@ def root_error(P_est, P_true, camera, root: Sequence[int]) -> float:
     return 1000.0 * float(np.linalg.norm(P[:, idx].mean(1) - G[:, idx].mean(1), axis=-1).mean())
 
 
-def flip_rate(P_est, P_true, camera, segments: Sequence[tuple[int, int]], *, min_fraction: float = 0.1,
-              per_segment: bool = False):
-    """Share of limb segments (parent, child point indices) whose depth sign along the
-    line of sight (child minus parent) differs from the truth's, over the frames where
-    the true depth difference exceeds ``min_fraction`` of the segment's true length.
-    NaN if nothing counts; with ``per_segment`` also ``[(flipped, counted)]``."""
+def flipped_segments(P_est, P_true, camera, segments: Sequence[tuple[int, int]], *, min_fraction: float = 0.1):
+    """(flipped, counted), (T, S) bool: per frame and limb segment (parent, child point
+    indices), whether it counts (its true depth difference along the line of sight exceeds
+    ``min_fraction`` of its true length) and, counted, whether the estimate's depth sign
+    (child minus parent) differs from the truth's."""
     P, G = _pair(P_est, P_true)
     a = np.array([s[0] for s in segments], int)
     b = np.array([s[1] for s in segments], int)
@@ -101,9 +100,19 @@ def flip_rate(P_est, P_true, camera, segments: Sequence[tuple[int, int]], *, min
     dz_t = camera.depth(G[:, b]) - camera.depth(G[:, a])
     L = np.linalg.norm(G[:, b] - G[:, a], axis=-1)
     count = np.abs(dz_t) > min_fraction * L
-    flip = count & (np.sign(dz_e) != np.sign(dz_t))
+    return count & (np.sign(dz_e) != np.sign(dz_t)), count
+
+
+def flip_rate(P_est, P_true, camera, segments: Sequence[tuple[int, int]], *, min_fraction: float = 0.1,
+              per_segment: bool = False):
+    """Share of limb segments (parent, child point indices) whose depth sign along the
+    line of sight (child minus parent) differs from the truth's, over the frames where
+    the true depth difference exceeds ``min_fraction`` of the segment's true length
+    (:func:`flipped_segments`). NaN if nothing counts; with ``per_segment`` also
+    ``[(flipped, counted)]``."""
+    flip, count = flipped_segments(P_est, P_true, camera, segments, min_fraction=min_fraction)
     n = int(count.sum())
     rate = float(flip.sum() / n) if n else float("nan")
     if per_segment:
-        return rate, [(int(flip[:, k].sum()), int(count[:, k].sum())) for k in range(len(a))]
+        return rate, [(int(flip[:, k].sum()), int(count[:, k].sum())) for k in range(flip.shape[1])]
     return rate
