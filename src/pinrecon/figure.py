@@ -252,7 +252,8 @@ class Figure:
         """The same figure with the given joint limits (radians) replacing its own; joints
         not named keep theirs. ``limits`` may be a file (:func:`pinrecon.joint_limits.load_limits`:
         a limits JSON, or a CMU ASF skeleton for a BVH figure, whose one-DOF bones also
-        become hinges: ``meta["hinges"]``, :mod:`pinrecon.rows.hinges`)."""
+        become hinges, ``meta["hinges"]`` (:mod:`pinrecon.rows.hinges`), and whose other
+        bones keep their own DOFs and limits, ``meta["bones"]`` (:mod:`pinrecon.rows.bones`))."""
         from .joint_limits import load_limits, urdf_with_limits
 
         meta = self.meta
@@ -262,11 +263,13 @@ class Figure:
             unknown = [n for n in limits if n not in self._joint_ids]
             if unknown:
                 raise UnknownNameError("joint", unknown, self.joint_names, file=src, field="limits")
-            if str(src).lower().endswith(".asf"):  # its one-DOF bones: hinges (pinrecon.rows.hinges)
-                from .io.asf import bvh_hinges_from_asf, read_asf
+            if str(src).lower().endswith(".asf"):  # its bones' own DOFs: pinrecon.rows.hinges, .bones
+                from .io.asf import bvh_bones_from_asf, bvh_hinges_from_asf, read_asf
 
-                hinges = bvh_hinges_from_asf(read_asf(src), self.joint_names)
-                meta = {**(meta or {}), "hinges": hinges} if hinges else meta
+                asf = read_asf(src)
+                found = {"hinges": bvh_hinges_from_asf(asf, self.joint_names),
+                         "bones": bvh_bones_from_asf(asf, self.joint_names)}
+                meta = {**(meta or {}), **{k: v for k, v in found.items() if v}}
         given = {str(k): (float(a), float(b)) for k, (a, b) in dict(limits).items()}
         xml = urdf_with_limits(self.urdf_xml, given) if self.urdf_xml else None  # saved URDFs keep them
         return Figure(self.model, self.keypoints_def, name=self.name, urdf_xml=xml, limits={**self.limits_dict(), **given},

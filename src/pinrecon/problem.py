@@ -29,7 +29,7 @@ from .rows import (
     CameraScale, GlobalPrior, JointKeyframes, JointLimits, Measurement2D, Points3D, Posture, Smoothing, State,
     smoothing_sigmas,
 )
-from .rows.hinges import hinge_row
+from .rows.bones import skeleton_rows
 from .rows.posture import PosePrior, posture_row, rest_pose
 from .tracks import Keyframe, Keyframes, Markers, Tracks
 
@@ -639,7 +639,7 @@ def make_problem(
     smoothing, limits = prior_rows(figure, T, fps, weights)
     active = observable_mask(figure, used, keyframes)
     rows = [v.measurement for v in views] + [limits, smoothing]
-    rows += [r for r in (posture_row(figure, T, weights, active), hinge_row(figure, T, active)) if r is not None]
+    rows += [r for r in (posture_row(figure, T, weights, active),) if r is not None] + skeleton_rows(figure, T, active)
     if keyframes is not None and len(keyframes):
         rows += keyframe_rows(figure, keyframes, factors[0])
     g0, names = None, []

@@ -289,3 +289,26 @@ def bvh_hinges_from_asf(skeleton: AsfSkeleton, joint_names: Iterable[str], *, bo
         a = _axis_matrix(bone) @ np.eye(3)["xyz".index(rot[0][1])]
         out[bvh] = [round(float(v), 9) for v in a]
     return out
+
+
+def bvh_bones_from_asf(skeleton: AsfSkeleton, joint_names: Iterable[str], *, bone_map: Mapping[str, str] | None = None,
+                       skip_bones: Iterable[str] | None = None) -> dict[str, dict]:
+    """The BVH joints whose ASF bone has two or three rotational DOFs (a foot, a clavicle,
+    a femur, a humerus, the spine): ``{joint: {"axis": C, "dof": [...], "limits": [[lo, hi],
+    ...]}}`` (``C`` the bone's ``axis`` frame as nested lists, the DOFs among ``rx ry rz``,
+    their limits in degrees, or ``None`` when the file gives none). Only joints with three
+    rotation channels; ``bone_map`` and ``skip_bones`` as in :func:`bvh_limits_from_asf`.
+    :class:`pinrecon.rows.bones.Bones` holds the joints to them."""
+    bone_map = dict(CMU_BVH_FROM_ASF if bone_map is None else bone_map)
+    skip = set(NO_CAPTURED_LIMITS if skip_bones is None else skip_bones)
+    channels = _rotation_channels(joint_names)
+    out = {}
+    for bname, bone in skeleton.bones.items():
+        bvh = bone_map.get(bname)
+        rot = [(d, lim) for d, lim in zip(bone.dof, bone.limits_deg or [None] * len(bone.dof)) if d in ("rx", "ry", "rz")]
+        if bname in skip or bvh is None or len(channels.get(bvh, ())) != 3 or len(rot) < 2:
+            continue
+        limits = None if len(bone.limits_deg) != len(bone.dof) else [[float(a), float(b)] for _, (a, b) in rot]
+        out[bvh] = {"axis": [[round(float(v), 12) for v in row] for row in _axis_matrix(bone)],
+                    "dof": [d for d, _ in rot], "limits": limits}
+    return out
