@@ -89,7 +89,7 @@ def run_video(out_dir, *, frames: int | None = None, seed: int = 0, callback=Non
     from . import metrics
     from .figure import Figure
     from .reconstruct import reconstruct
-    from .result import hypothesis_spans
+    from .result import hypothesis_spans, unfamiliar_frames
     from .synthetic import (
         bundled_motion,
         coco_body_tracks,
@@ -116,6 +116,7 @@ def run_video(out_dir, *, frames: int | None = None, seed: int = 0, callback=Non
     segs = [(names.index(a), names.index(b)) for a, b in _SEGMENTS]
     x = res.extras
     _, spans, thr = hypothesis_spans(x)
+    d, lim, _ = unfamiliar_frames(x)
     return {
         "frames": len(q), "fps": fps, "time_s": dt,
         "calibrated": bool(res.calibration) and res.calibration.get("mode", "none") != "none",
@@ -125,8 +126,7 @@ def run_video(out_dir, *, frames: int | None = None, seed: int = 0, callback=Non
                         & set(np.asarray(log["swapped_frames"]).tolist())),
         "swapped": len(log["swapped_frames"]), "outliers": len(x.get("outlier_frames", [])),
         "injected": len(log["outliers"]), "spans": len(spans), "uncertain": int(np.sum(spans[:, 4] < thr)),
-        "unfamiliar": int(np.sum(np.asarray(x.get("prior_distance", []), float)
-                                 > float(x.get("prior_distance_limit", np.inf)))),
+        "unfamiliar": int(np.sum(d > lim)),
         "reprojection_px": float(np.nanmean(res.reprojection_error_px)),
         "files": [out / "tracks.json", out / "camera.json", out / "result.npz"],
     }

@@ -145,9 +145,9 @@ class Result:
                              f"{(b - 1) / self.fps:.2f} s), gap {gap:.1f}")
             if len(unc) > limit:
                 lines.append(f"  ... and {len(unc) - limit} more")
-        if len(x.get("prior_unfamiliar_spans", ())):
-            sp, d = np.asarray(x["prior_unfamiliar_spans"], int), np.asarray(x["prior_distance"], float)
-            lim, n = float(x["prior_distance_limit"]), int(np.sum(d > float(x["prior_distance_limit"])))
+        d, lim, sp = unfamiliar_frames(x)
+        if len(sp):
+            n = int(np.sum(d > lim))
             lines.append(f"poses unlike the pose prior's clips in {n} of {len(d)} frames ({100 * n / len(d):.0f} %; "
                          f"Mahalanobis distance > {lim:.1f}, their 99th percentile): limb depths there are the "
                          "prior's extrapolation and may be mirrored; 3D keyframes there would decide them")
@@ -351,3 +351,13 @@ def hypothesis_spans(extras) -> tuple[list[str], np.ndarray, float]:
     chains = [str(c) for c in np.asarray(extras.get("hypothesis_chains", [])).ravel().tolist()]
     spans = np.asarray(extras.get("hypothesis_spans", np.zeros((0, 5))), float).reshape(-1, 5)
     return chains, spans, float(np.asarray(extras.get("hypothesis_threshold", 2.0)))
+
+
+def unfamiliar_frames(extras) -> tuple[np.ndarray, float, np.ndarray]:
+    """What :mod:`pinrecon.unfamiliar` left in a result's ``extras``: each frame's distance
+    from the pose prior, the limit, and the (n, 2) spans beyond it; an empty distance and
+    no spans when the problem had no learned prior. ``(distance > limit).sum()`` counts the
+    frames."""
+    d = np.asarray(extras.get("prior_distance", np.zeros(0)), float)
+    lim = float(extras.get("prior_distance_limit", np.inf))
+    return d, lim, np.asarray(extras.get("prior_unfamiliar_spans", np.zeros((0, 2))), int).reshape(-1, 2)

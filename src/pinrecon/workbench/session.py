@@ -32,7 +32,7 @@ import numpy as np
 
 from .. import Keyframe, Keyframes, Result, SolverOptions, Tracks, Weights, reconstruct
 from ..errors import InputError
-from ..result import hypothesis_spans
+from ..result import hypothesis_spans, unfamiliar_frames
 from .edits import (
     Segment,
     blend_delta,
@@ -527,7 +527,7 @@ UNFAMILIAR = "all limbs: pose unlike the prior's clips"
 def _uncertain_spans(result, n_frames: int) -> list[tuple[int, int, str]]:
     """``(start, stop, chain)`` of the spans the hypothesis search called uncertain
     (:func:`pinrecon.result.hypothesis_spans`) and of the poses the pose prior does not
-    know (``prior_unfamiliar_spans``, labelled :data:`UNFAMILIAR`), clipped to the frames."""
+    know (:func:`pinrecon.result.unfamiliar_frames`, labelled :data:`UNFAMILIAR`), clipped to the frames."""
     extras = getattr(result, "extras", None) or {}
     chains, spans, thr = hypothesis_spans(extras)
     out = []
@@ -535,7 +535,7 @@ def _uncertain_spans(result, n_frames: int) -> list[tuple[int, int, str]]:
         a, b = int(max(0, a)), int(min(n_frames, b))
         if gap < thr and b > a:
             out.append((a, b, chains[int(c)] if 0 <= int(c) < len(chains) else f"chain {int(c)}"))
-    for a, b in np.asarray(extras.get("prior_unfamiliar_spans", np.zeros((0, 2))), int).reshape(-1, 2):
+    for a, b in unfamiliar_frames(extras)[2]:
         a, b = int(max(0, a)), int(min(n_frames, b))
         if b > a:
             out.append((a, b, UNFAMILIAR))
