@@ -31,3 +31,22 @@ def dense_jacobian(blocks, T: int, nv: int, n_g: int = 0) -> tuple[np.ndarray, n
     if not Js:
         return np.zeros((0, T * nv + n_g)), np.zeros(0)
     return np.vstack(Js), np.concatenate(rs)
+
+
+def row_jacobian_error(row, figure, Q, eps: float = 1e-6) -> float:
+    """The largest difference between a per-frame row kind's analytic Jacobian and central
+    finite differences over the q entries of its columns (1-dof joints: the tangent entry is
+    the q entry); ``row.qidx`` lists those q entries in the order of ``row.cols``."""
+    from pinrecon.rows import State
+
+    def r(Qx):
+        return row.evaluate(State(figure, Qx, np.zeros(0, int), False), False).r
+
+    J = row.evaluate(State(figure, Q, np.zeros(0, int), False), True).J
+    err = 0.0
+    for k, iq in enumerate(np.asarray(row.qidx).ravel()):
+        Qp, Qm = Q.copy(), Q.copy()
+        Qp[:, iq] += eps
+        Qm[:, iq] -= eps
+        err = max(err, float(np.abs(J[:, 0, :, k] - (r(Qp) - r(Qm)) / (2 * eps)).max()))
+    return err

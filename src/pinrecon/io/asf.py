@@ -269,6 +269,18 @@ def bvh_limits_from_asf(skeleton: AsfSkeleton, joint_names: Iterable[str], *, bo
     return out
 
 
+def _bvh_bones(skeleton, joint_names, bone_map, skip_bones):
+    """``(bone, BVH joint, rotational DOFs)`` of the bones mapped to a BVH joint with three
+    rotation channels, not skipped (defaults as in :func:`bvh_limits_from_asf`)."""
+    bone_map = dict(CMU_BVH_FROM_ASF if bone_map is None else bone_map)
+    skip = set(NO_CAPTURED_LIMITS if skip_bones is None else skip_bones)
+    channels = _rotation_channels(joint_names)
+    for bname, bone in skeleton.bones.items():
+        bvh = bone_map.get(bname)
+        if bname not in skip and bvh is not None and len(channels.get(bvh, ())) == 3:
+            yield bone, bvh, [d for d in bone.dof if d in ("rx", "ry", "rz")]
+
+
 def bvh_hinges_from_asf(skeleton: AsfSkeleton, joint_names: Iterable[str], *, bone_map: Mapping[str, str] | None = None,
                         skip_bones: Iterable[str] | None = None) -> dict[str, list[float]]:
     """The BVH joints whose ASF bone turns about one axis (one rotational DOF: CMU's knees,
@@ -277,17 +289,11 @@ def bvh_hinges_from_asf(skeleton: AsfSkeleton, joint_names: Iterable[str], *, bo
     compose ``C M C^-1``. Only joints with three rotation channels; ``bone_map`` and
     ``skip_bones`` as in :func:`bvh_limits_from_asf`. :class:`pinrecon.rows.hinges.Hinges`
     holds the joints on them."""
-    bone_map = dict(CMU_BVH_FROM_ASF if bone_map is None else bone_map)
-    skip = set(NO_CAPTURED_LIMITS if skip_bones is None else skip_bones)
-    channels = _rotation_channels(joint_names)
     out = {}
-    for bname, bone in skeleton.bones.items():
-        bvh = bone_map.get(bname)
-        rot = [d for d in bone.dof if d in ("rx", "ry", "rz")]
-        if bname in skip or bvh is None or len(channels.get(bvh, ())) != 3 or len(rot) != 1:
-            continue
-        a = _axis_matrix(bone) @ np.eye(3)["xyz".index(rot[0][1])]
-        out[bvh] = [round(float(v), 9) for v in a]
+    for bone, bvh, rot in _bvh_bones(skeleton, joint_names, bone_map, skip_bones):
+        if len(rot) == 1:
+            a = _axis_matrix(bone) @ np.eye(3)["xyz".index(rot[0][1])]
+            out[bvh] = [round(float(v), 9) for v in a]
     return out
 
 
@@ -299,16 +305,11 @@ def bvh_bones_from_asf(skeleton: AsfSkeleton, joint_names: Iterable[str], *, bon
     their limits in degrees, or ``None`` when the file gives none). Only joints with three
     rotation channels; ``bone_map`` and ``skip_bones`` as in :func:`bvh_limits_from_asf`.
     :class:`pinrecon.rows.bones.Bones` holds the joints to them."""
-    bone_map = dict(CMU_BVH_FROM_ASF if bone_map is None else bone_map)
-    skip = set(NO_CAPTURED_LIMITS if skip_bones is None else skip_bones)
-    channels = _rotation_channels(joint_names)
     out = {}
-    for bname, bone in skeleton.bones.items():
-        bvh = bone_map.get(bname)
-        rot = [(d, lim) for d, lim in zip(bone.dof, bone.limits_deg or [None] * len(bone.dof)) if d in ("rx", "ry", "rz")]
-        if bname in skip or bvh is None or len(channels.get(bvh, ())) != 3 or len(rot) < 2:
+    for bone, bvh, rot in _bvh_bones(skeleton, joint_names, bone_map, skip_bones):
+        if len(rot) < 2:
             continue
-        limits = None if len(bone.limits_deg) != len(bone.dof) else [[float(a), float(b)] for _, (a, b) in rot]
-        out[bvh] = {"axis": [[round(float(v), 12) for v in row] for row in _axis_matrix(bone)],
-                    "dof": [d for d, _ in rot], "limits": limits}
+        lim = dict(zip(bone.dof, bone.limits_deg)) if len(bone.limits_deg) == len(bone.dof) else None
+        out[bvh] = {"axis": [[round(float(v), 12) for v in row] for row in _axis_matrix(bone)], "dof": rot,
+                    "limits": None if lim is None else [[float(lim[d][0]), float(lim[d][1])] for d in rot]}
     return out
