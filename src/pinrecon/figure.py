@@ -259,17 +259,19 @@ class Figure:
         meta = self.meta
         if isinstance(limits, (str, os.PathLike)):
             src = limits
-            limits = load_limits(limits, self.joint_names)
+            if str(src).lower().endswith(".asf"):  # read once: limits, and its bones' own DOFs (rows.hinges, .bones)
+                from .io import asf as acclaim
+
+                sk = acclaim.read_asf(src)
+                limits = acclaim.bvh_limits_from_asf(sk, self.joint_names)
+                found = {"hinges": acclaim.bvh_hinges_from_asf(sk, self.joint_names),
+                         "bones": acclaim.bvh_bones_from_asf(sk, self.joint_names)}
+                meta = {**(meta or {}), **{k: v for k, v in found.items() if v}}
+            else:
+                limits = load_limits(limits, self.joint_names)
             unknown = [n for n in limits if n not in self._joint_ids]
             if unknown:
                 raise UnknownNameError("joint", unknown, self.joint_names, file=src, field="limits")
-            if str(src).lower().endswith(".asf"):  # its bones' own DOFs: pinrecon.rows.hinges, .bones
-                from .io.asf import bvh_bones_from_asf, bvh_hinges_from_asf, read_asf
-
-                asf = read_asf(src)
-                found = {"hinges": bvh_hinges_from_asf(asf, self.joint_names),
-                         "bones": bvh_bones_from_asf(asf, self.joint_names)}
-                meta = {**(meta or {}), **{k: v for k, v in found.items() if v}}
         given = {str(k): (float(a), float(b)) for k, (a, b) in dict(limits).items()}
         xml = urdf_with_limits(self.urdf_xml, given) if self.urdf_xml else None  # saved URDFs keep them
         return Figure(self.model, self.keypoints_def, name=self.name, urdf_xml=xml, limits={**self.limits_dict(), **given},

@@ -639,7 +639,7 @@ def make_problem(
     smoothing, limits = prior_rows(figure, T, fps, weights)
     active = observable_mask(figure, used, keyframes)
     rows = [v.measurement for v in views] + [limits, smoothing]
-    rows += [r for r in (posture_row(figure, T, weights, active),) if r is not None] + skeleton_rows(figure, T, active)
+    rows += [r for r in [posture_row(figure, T, weights, active), *skeleton_rows(figure, T, active)] if r is not None]
     if keyframes is not None and len(keyframes):
         rows += keyframe_rows(figure, keyframes, factors[0])
     g0, names = None, []

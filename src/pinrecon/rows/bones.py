@@ -28,13 +28,11 @@ the angles' derivatives from ``dM``.
 
 from __future__ import annotations
 
-import re
-
 import numpy as np
 
 from ..rotations import euler_to_matrix
 from .base import RowBlock, RowKind, State
-from .hinges import hinge_row
+from .hinges import channel_joints, hinge_row
 
 __all__ = ["Bones", "bone_angles", "bone_row", "skeleton_rows"]
 
@@ -77,8 +75,8 @@ class Bones(RowKind):
         m = figure.model
         self.joints, self.axes, qidx, cols, Cs, lo, hi, inv = [], [], [], [], [], [], [], []
         for joint, spec in bones.items():
-            ids = [j for j in range(1, m.njoints) if re.fullmatch(re.escape(joint) + r"_[XYZ]rotation", m.names[j])]
-            if len(ids) != 3 or (active is not None and not all(active[m.idx_vs[j]] for j in ids)):
+            ch = channel_joints(m, joint, active)
+            if ch is None:
                 continue
             lims = dict(zip(spec["dof"], spec.get("limits") or [None] * len(spec["dof"])))
             b_lo, b_hi, b_inv = np.full(3, -np.inf), np.full(3, np.inf), np.zeros(3)
@@ -90,9 +88,9 @@ class Bones(RowKind):
                     b_hi[i] = np.radians(lims[d][1] + margin_deg)
                     b_inv[i] = 1.0 / sigma_limit
             self.joints.append(joint)
-            self.axes.append("".join(m.names[j][-9] for j in ids))
-            qidx.append([m.idx_qs[j] for j in ids])
-            cols.append([m.idx_vs[j] for j in ids])
+            self.axes.append(ch[0])
+            qidx.append(ch[1])
+            cols.append(ch[2])
             Cs.append(np.asarray(spec["axis"], float).reshape(3, 3))
             lo.append(b_lo), hi.append(b_hi), inv.append(b_inv)
         self.qidx = np.array(qidx, int).reshape(-1, 3)

@@ -31,9 +31,19 @@ from scipy.spatial.transform import Rotation
 from ..rotations import euler_to_matrix
 from .base import RowBlock, RowKind, State
 
-__all__ = ["Hinges", "hinge_row"]
+__all__ = ["Hinges", "channel_joints", "hinge_row"]
 
 _AXES = {"X": np.array([1.0, 0.0, 0.0]), "Y": np.array([0.0, 1.0, 0.0]), "Z": np.array([0.0, 0.0, 1.0])}
+
+
+def channel_joints(model, joint: str, active=None) -> tuple[str, list[int], list[int]] | None:
+    """A BVH joint's three rotation channels in ``model`` (joints ``<joint>_<X|Y|Z>rotation``,
+    in the model's order): ``(letters, q indices, v indices)``; None when it has not three,
+    or when a channel is outside ``active``."""
+    ids = [j for j in range(1, model.njoints) if re.fullmatch(re.escape(joint) + r"_[XYZ]rotation", model.names[j])]
+    if len(ids) != 3 or (active is not None and not all(active[model.idx_vs[j]] for j in ids)):
+        return None
+    return "".join(model.names[j][-9] for j in ids), [model.idx_qs[j] for j in ids], [model.idx_vs[j] for j in ids]
 
 
 def _jlog3(w):
@@ -63,16 +73,16 @@ class Hinges(RowKind):
         m = figure.model
         qidx, cols, axes, bases, labels = [], [], [], [], []
         for joint, a in hinges.items():
-            ids = [j for j in range(1, m.njoints) if re.fullmatch(re.escape(joint) + r"_[XYZ]rotation", m.names[j])]
-            if len(ids) != 3 or (active is not None and not all(active[m.idx_vs[j]] for j in ids)):
+            ch = channel_joints(m, joint, active)
+            if ch is None:
                 continue
             a = np.asarray(a, float) / np.linalg.norm(a)
             u = np.cross(a, [1.0, 0.0, 0.0] if abs(a[0]) < 0.9 else [0.0, 1.0, 0.0])
             u /= np.linalg.norm(u)
             bases.append(np.stack([u, np.cross(a, u)]))  # (2, 3)
-            qidx.append([m.idx_qs[j] for j in ids])
-            cols.append([m.idx_vs[j] for j in ids])
-            axes.append("".join(m.names[j][-9] for j in ids))  # the channels' letters, in order
+            axes.append(ch[0])  # the channels' letters, in order
+            qidx.append(ch[1])
+            cols.append(ch[2])
             labels.append(joint)
         self.qidx = np.array(qidx, int).reshape(-1, 3)
         self.cols = np.array(cols, int).ravel()
