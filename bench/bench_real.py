@@ -136,14 +136,15 @@ def _start(start, keys):
 _CACHE: dict = {}
 
 
-def run_detector(clip, azimuth, keyframes, start, mode, frames=None, figure="human"):
-    key = (clip, azimuth, keyframes, _start(start, keyframes if keyframes != "none" else None), mode, frames, figure)
+def run_detector(clip, azimuth, keyframes, start, mode, frames=None, figure="human", prior="auto"):
+    key = (clip, azimuth, keyframes, _start(start, keyframes if keyframes != "none" else None), mode, frames, figure,
+           prior)
     if key not in _CACHE:
-        _CACHE[key] = _run_detector(clip, azimuth, keyframes, start, mode, frames, figure)
+        _CACHE[key] = _run_detector(clip, azimuth, keyframes, start, mode, frames, figure, prior)
     return _CACHE[key]
 
 
-def _run_detector(clip, azimuth, keyframes, start, mode, frames=None, figure="human"):
+def _run_detector(clip, azimuth, keyframes, start, mode, frames=None, figure="human", prior="auto"):
     tracks, cam, keys, P, log = detector_case(clip, azimuth, keyframes, frames, seed=int(azimuth))
     coco = list(tracks.names)
     if figure == "own":  # the clip's own skeleton: the same tracks under the CMU joint names
@@ -159,7 +160,8 @@ def _run_detector(clip, azimuth, keyframes, start, mode, frames=None, figure="hu
     t0 = time.perf_counter()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        res = pr.reconstruct(fig, tracks, cam, keys, seed=_start(start, keys), **kw)
+        res = pr.reconstruct(fig, tracks, cam, keys, seed=_start(start, keys), weights=pr.Weights(pose_prior_model=prior),
+                             **kw)
     dt = time.perf_counter() - t0
     P_est = res.keypoints3d[:, res.figure.keypoint_index(tracks.names)]
     out = score(P_est, P, cam, coco)
@@ -171,7 +173,7 @@ def _run_detector(clip, azimuth, keyframes, start, mode, frames=None, figure="hu
     return out
 
 
-def run_lab(clip, start, frames=None):
+def run_lab(clip, start, frames=None, prior="auto"):
     fig, q, fps = bundled_motion(clip)
     if frames:
         q = q[:frames]
@@ -183,7 +185,7 @@ def run_lab(clip, start, frames=None):
     t0 = time.perf_counter()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        res = pr.reconstruct(fig, tracks, cam, keys, seed=_start(start, keys))
+        res = pr.reconstruct(fig, tracks, cam, keys, seed=_start(start, keys), weights=pr.Weights(pose_prior_model=prior))
     dt = time.perf_counter() - t0
     coco = {v: k for k, v in COCO_BODY_FROM_CMU.items()}
     idx = fig.keypoint_index(names)
@@ -209,6 +211,9 @@ def main(argv=None):
     ap.add_argument("--figure", choices=["human", "own"], default="human",
                     help="Figure.human() (default) or the clip's own skeleton (with the ASF limits)")
     ap.add_argument("--uncalibrated", action="store_true", help="calibrate='none' even where reconstruct can")
+    ap.add_argument("--pose-prior-model", default="auto",
+                    help="Weights.pose_prior_model for every row, the lab case's too (cmu_bvh_pose: the CMU BVH "
+                    "skeleton's prior, with --figure own)")
     a = ap.parse_args(argv)
     if a.quick:
         a.clips, a.angles, a.frames = ["walk"], [45.0], a.frames or 150
@@ -219,6 +224,7 @@ def main(argv=None):
     if a.uncalibrated and mode:
         mode = "none"
     what = "the clip's own skeleton (ASF limits)" if a.figure == "own" else "Figure.human()"
+    what += f", pose prior {a.pose_prior_model!r}"
     cal = mode not in (None, "none") and a.figure == "human"  # the own skeleton is the subject's: never calibrated
     print(f"mode: {what}, {'calibrated (calibrate=' + repr(mode) + ')' if cal else 'uncalibrated'}"
           f" (reconstruct {'takes' if calibration_mode() else 'does not take'} calibrate=)")
@@ -230,7 +236,8 @@ def main(argv=None):
     for clip in a.clips:
         for kf in a.keyframes:
             for start in a.starts:
-                rows = [run_detector(clip, az, kf, start, mode, a.frames, a.figure) for az in a.angles]
+                rows = [run_detector(clip, az, kf, start, mode, a.frames, a.figure, a.pose_prior_model)
+                        for az in a.angles]
                 m = {k: float(np.mean([r[k] for r in rows])) for k in rows[0]}
                 worst = max(r["flips"] for r in rows)
                 pa_max, fl_max = LIMITS[kf]
@@ -249,7 +256,7 @@ def main(argv=None):
     print("|---|---|---:|---:|---:|---:|---:|---|")
     for clip in [c for c in a.clips if c in ("walk", "run")]:
         for start in a.lab_starts:
-            r = run_lab(clip, start, a.frames)
+            r = run_lab(clip, start, a.frames, a.pose_prior_model)
             print(f"| {clip} | {start} | {r['pa']:.1f} | {r['flips']:.1f} | {r['dz']:.1f} | {r['mpjpe']:.1f} "
                   f"| {r['time']:.0f} | {'yes' if r['flips'] <= 2.0 else 'no'} |", flush=True)
 

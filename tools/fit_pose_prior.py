@@ -1,4 +1,6 @@
-"""Fit the generic human's pose prior (``models/priors/human_pose.json``) to CMU motion capture.
+"""Fit a pose prior (``models/priors/*.json``) to CMU motion capture.
+
+``--figure human`` (default; ``models/priors/human_pose.json``):
 
 Each clip's 12 COCO-17 body joint centres (shoulders, elbows, wrists, hips, knees, ankles),
 taken at 30 fps (at most ``--max-frames`` evenly spaced frames of each) and scaled so that the median hip-knee-ankle length is the human figure's,
@@ -15,7 +17,17 @@ own range does not.
 
     python tools/fit_pose_prior.py cmu-mb_01_01.bvh cmu-max_131_03.bvh -o models/priors/human_pose.json
 
-The clips used for the bundled prior, and why these: ``models/priors/README.md``.
+``--figure bvh`` (``models/priors/cmu_bvh_pose.json``): the prior of a figure made from a BVH
+file of the same skeleton layout (the CMU motionbuilder release, any subject): no fitting,
+the clips' channels are that figure's joint angles. The same statistics over them, the
+joints ``--skip`` names left out (default the fingers and thumbs, which the capture does not
+measure), and the rest pose's bone directions (``"rest_directions"``: the mean unit OFFSET
+of each bone over the clips' skeletons), by which :func:`pinrecon.rows.posture.posture_row`
+refuses a figure whose joints have the same names but another rest pose.
+
+    python tools/fit_pose_prior.py --figure bvh 01_01.bvh 03_01.bvh -o models/priors/cmu_bvh_pose.json
+
+The clips used for the bundled priors, and why these: ``models/priors/README.md``.
 """
 
 from __future__ import annotations
@@ -68,28 +80,56 @@ def fit_clip(path, fig, fps_out=30.0):
     return res.q, float(err)
 
 
+def clip_channels(path, fps_out=30.0):
+    """(figure, q at about ``fps_out``, rest directions {joint: unit OFFSET}) of a BVH clip
+    whose figure is the prior's own (``--figure bvh``)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        m = load_bvh(path, 0.056444, skip_frames=1)
+    step = max(1, round(m.fps / fps_out))
+    bvh = m.figure.meta["bvh"]
+    dirs = {n: np.asarray(o) / np.linalg.norm(o) for n, o in zip(bvh["names"], bvh["offsets"])
+            if np.linalg.norm(o) > 1e-9 and bvh["parents"][bvh["names"].index(n)] >= 0}
+    return m.figure, m.q[::step], dirs
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("bvh", nargs="+")
-    ap.add_argument("-o", "--out", default="models/priors/human_pose.json")
+    ap.add_argument("--figure", choices=("human", "bvh"), default="human",
+                    help="human: Figure.human(), the clips' joint centres fitted; bvh: the clips' own skeleton layout")
+    ap.add_argument("-o", "--out", default=None, help="default models/priors/human_pose.json or cmu_bvh_pose.json")
     ap.add_argument("--min-std", type=float, default=0.05)
-    ap.add_argument("--skip", default="elbow_Z",
-                    help="regular expression of joints left out (default the elbows' flexion: its mean depends on "
-                    "the activity, and with it a 2 s walk's forearm was calibrated 16 %% long)")
+    ap.add_argument("--skip", default=None,
+                    help="regular expression of joints left out (human: default the elbows' flexion, elbow_Z: its "
+                    "mean depends on the activity, and with it a 2 s walk's forearm was calibrated 16 %% long; bvh: "
+                    "default the fingers and thumbs, Thumb|Finger)")
     ap.add_argument("--shrink", type=float, default=0.1,
                     help="weight of the diagonal in the covariance (0: the sample covariance, 1: independent joints)")
     ap.add_argument("--max-frames", type=int, default=150,
                     help="frames kept per clip, evenly spaced, so that every clip weighs about the same")
     a = ap.parse_args(argv)
-    fig = pr.Figure.human()
-    m = fig.model
-    qs, clips = [], []
+    bvh_mode = a.figure == "bvh"
+    a.out = a.out or f"models/priors/{'cmu_bvh_pose' if bvh_mode else 'human_pose'}.json"
+    a.skip = (r"Thumb|Finger" if bvh_mode else "elbow_Z") if a.skip is None else a.skip
+    fig = None if bvh_mode else pr.Figure.human()
+    qs, clips, dirs = [], [], []
     for path in a.bvh:
-        q, err = fit_clip(path, fig)
+        if bvh_mode:
+            f, q, d = clip_channels(path)
+            if fig is not None and list(f.model.names) != list(fig.model.names):
+                raise SystemExit(f"{path}: joints differ from {a.bvh[0]}'s: --figure bvh needs one skeleton layout")
+            fig = fig or f
+            dirs.append(d)
+        else:
+            q, err = fit_clip(path, fig)
         q = q[np.unique(np.linspace(0, len(q) - 1, min(len(q), a.max_frames)).round().astype(int))]
         qs.append(q)
-        clips.append({"file": Path(path).name, "frames": len(q), "fit_error_mm": round(1000 * err, 1)})
-        print(f"{path}: {len(q)} frames kept (of the clip at 30 fps), markers fitted to {1000 * err:.1f} mm")
+        clips.append({"file": Path(path).name, "frames": len(q)} if bvh_mode else
+                     {"file": Path(path).name, "frames": len(q), "fit_error_mm": round(1000 * err, 1)})
+        print(f"{path}: {len(q)} frames kept (of the clip at 30 fps)" +
+              ("" if bvh_mode else f", markers fitted to {1000 * err:.1f} mm"))
+    m = fig.model
     Q = np.concatenate(qs)
     joints, moving = {}, []
     for jid in range(1, m.njoints):
@@ -105,13 +145,19 @@ def main(argv=None):
     # deviations): the yardstick of a pose the prior does not know (pinrecon.unfamiliar)
     D = X - X.mean(axis=0)
     dist = np.sqrt(np.einsum("ij,ij->i", D @ np.linalg.inv(C), D))
-    out = {"figure": "Figure.human()", "units": "rad", "joints": joints,
+    out = {"figure": "BVH, CMU motionbuilder layout" if bvh_mode else "Figure.human()", "units": "rad", "joints": joints,
            "correlated": {"joints": [m.names[j] for j in moving], "shrink": a.shrink,
                           "covariance": [[round(float(v), 7) for v in row] for row in C],
                           "distance_quantiles": {str(p): round(float(np.percentile(dist, p)), 3)
                                                  for p in (50, 90, 99, 100)}},
            "clips": clips, "frames": int(len(Q)), "min_std_rad": a.min_std, "skipped": a.skip,
-           "made_by": "tools/fit_pose_prior.py"}
+           "made_by": "tools/fit_pose_prior.py" + (" --figure bvh" if bvh_mode else "")}
+    if bvh_mode:
+        mean_dir = {n: np.mean([d[n] for d in dirs], axis=0) for n in dirs[0]}
+        out["rest_directions"] = {n: [round(float(x), 4) for x in v / np.linalg.norm(v)] for n, v in mean_dir.items()}
+        spread = max(np.degrees(np.arccos(np.clip(d[n] @ (v / np.linalg.norm(v)), -1, 1)))
+                     for d in dirs for n, v in mean_dir.items())
+        out["rest_direction_spread_deg"] = round(float(spread), 1)
     Path(a.out).parent.mkdir(parents=True, exist_ok=True)
     Path(a.out).write_text(json.dumps(out, indent=1) + "\n")
     print(f"wrote {a.out}: {len(joints)} joints, {len(Q)} frames")

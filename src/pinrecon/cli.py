@@ -488,6 +488,10 @@ def add_pose_prior_argument(parser) -> None:
                         help="the pose prior's robust loss beyond a Mahalanobis distance of 2 (huber, the "
                         "default) or 3 (cauchy: better for motion unlike walking and running, such as dance, "
                         "with a given camera; worse for --camera auto's focal length)")
+    parser.add_argument("--pose-prior-model", default=argparse.SUPPRESS, metavar="NAME|FILE",
+                        help="which learned pose prior: auto (the default: the generic human's for --figure human, "
+                        "none for other figures), none, a bundled one (cmu_bvh_pose: a figure made from a CMU BVH "
+                        "file, for detector tracks) or a JSON file made by tools/fit_pose_prior.py")
 
 
 def _weights_kwargs(args, names) -> dict:
@@ -499,9 +503,11 @@ def _weights_kwargs(args, names) -> dict:
 
 
 def pose_prior_weights(args) -> dict:
-    """The :class:`~pinrecon.Weights` keywords of ``--pose-prior`` and ``--pose-prior-loss``
-    (those given)."""
+    """The :class:`~pinrecon.Weights` keywords of ``--pose-prior``, ``--pose-prior-loss`` and
+    ``--pose-prior-model`` (those given)."""
     out = {"pose_prior": args.pose_prior} if hasattr(args, "pose_prior") else {}
+    if hasattr(args, "pose_prior_model"):
+        out["pose_prior_model"] = args.pose_prior_model
     if hasattr(args, "pose_prior_loss"):
         out.update(pose_prior_loss=args.pose_prior_loss, pose_prior_k=3.0 if args.pose_prior_loss == "cauchy" else 2.0)
     return out

@@ -17,7 +17,7 @@ from __future__ import annotations
 import math
 import warnings
 from collections.abc import Sequence
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -30,8 +30,9 @@ from .rows import (
     smoothing_sigmas,
 )
 from .rows.bones import skeleton_rows
-from .rows.posture import PosePrior, posture_row, rest_pose
+from .rows.posture import posture_row, rest_pose
 from .tracks import Keyframe, Keyframes, Markers, Tracks
+from .weights import Weights
 
 __all__ = [
     "Weights",
@@ -92,69 +93,6 @@ def default_calibrate(figure, keyframes=None, lengths_from_tracks: bool = False,
     if has_point_keyframes(keyframes) or several_views:
         return "lengths"
     return "lengths" if lengths_from_tracks else "none"
-
-
-_CHOICES = {"loss": ("auto", "l2", "huber", "cauchy"), "pose_prior_loss": PosePrior.LOSSES, "root_group": ("R3xSO3", "SE3")}
-
-
-@dataclass(frozen=True)
-class Weights:
-    """Standard deviations that weight each row kind (all have defaults tuned on real
-    human motion; see ``docs/derivations.md``, section 6).
-
-    sigma_px : 2D measurement noise, pixels.
-    loss, loss_scale_px : ``"auto"`` (``"cauchy"`` for tracks with confidences, else ``"l2"``),
-        ``"l2"``, ``"huber"`` or ``"cauchy"``; scale in pixels (default ``3 sigma_px``) for a point
-        of confidence 1 (errors are scaled by ``sqrt(c)`` first: ``loss_scale_px / sqrt(c)`` px).
-    sigma_limits : joint-limit barrier, radians (small = stiff).
-    acc_root_translation, acc_root_rotation, acc_joints : smoothing, standard deviation of
-        acceleration in m/s^2 and rad/s^2 (constant-velocity prior; large = weak).
-    sigma_markers_m : 3D marker noise for :func:`reconstruct_markers`, metres.
-    sigma_init_prior : prior pulling unkeyed joints to the rest pose when a point keyframe
-        is turned into a pose (radians).
-    sigma_posture : weak prior of every joint towards the rest pose in every frame
-        (radians; ``None`` turns it off), see :mod:`pinrecon.rows.posture`.
-    pose_prior : the generic human (``Figure.human()``) has a pose prior learned from
-        motion capture instead (``models/priors/human_pose.json``): the joints that move in
-        its clips held by their joint Gaussian, i.e. their Mahalanobis distance from the
-        mean in units of ``pose_prior``, every other 1-dof joint pulled to its mean with its
-        standard deviation times ``pose_prior`` (2: nine clips are a small sample of human
-        poses; ``None``: the rest-pose prior of ``sigma_posture``, as other figures).
-    pose_prior_loss, pose_prior_k : robust loss on a frame's Mahalanobis distance, quadratic up
-        to ``k`` (``None``: always), then ``"huber"`` linear or ``"cauchy"`` logarithmic (better
-        on dance, worse for an auto focal: bench/README.md; :class:`~.rows.posture.PosePrior`).
-    sigma_proportions : log-normal prior on the figure's segment scale factors when they
-        are calibrated (``calibrate="lengths"``): standard deviation of the log factor
-        around its start (0.1: about 10 %).
-    root_group : group on which the root's constant-velocity prior is written,
-        ``"R3xSO3"`` (world translation and orientation apart; default) or ``"SE3"``
-        (the free flyer's screw motion), see :mod:`pinrecon.rows.smoothing`.
-    """
-
-    sigma_px: float = 2.0
-    loss: str = "auto"
-    loss_scale_px: float | None = None
-    sigma_limits: float = 0.01
-    acc_root_translation: float = 5.0
-    acc_root_rotation: float = 10.0
-    acc_joints: float = 10.0
-    sigma_markers_m: float = 0.01
-    sigma_init_prior: float = 1.0
-    sigma_posture: float | None = 3.0
-    pose_prior: float | None = 2.0
-    pose_prior_loss: str = "huber"
-    pose_prior_k: float | None = 2.0
-    root_group: str = "R3xSO3"
-    sigma_proportions: float = 0.1
-
-    def __post_init__(self):
-        for f in fields(self):
-            v = getattr(self, f.name)
-            if f.name in _CHOICES:
-                if v not in _CHOICES[f.name]:
-                    raise InputError(f"must be one of {', '.join(_CHOICES[f.name])}, got {v!r}", field=f"weights.{f.name}")
-            elif v is not None and not (isinstance(v, (int, float)) and np.isfinite(v) and v > 0):
-                raise InputError(f"must be a positive number, got {v!r}", field=f"weights.{f.name}")
 
 
 @dataclass(frozen=True, eq=False)

@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .rows.posture import PosePrior, pose_prior_distances
+from .rows.posture import PosePrior
 
 __all__ = ["UnfamiliarPoses", "unfamiliar_poses"]
 
@@ -57,10 +57,10 @@ def unfamiliar_poses(problem, Q, *, quantile: str = "99", merge_s: float = 0.2) 
     """The frames of trajectory ``Q`` whose pose the problem's pose prior does not know
     (beyond its clips' ``quantile`` percentile of distance); runs closer than ``merge_s``
     seconds are one span. None when the problem has no learned pose prior (figures other
-    than the generic human, ``Weights(pose_prior=None)``)."""
+    than the generic human unless asked, ``Weights(pose_prior=None)``)."""
     prior = next((r for r in problem.rows if isinstance(r, PosePrior)), None)
-    limit = pose_prior_distances().get(quantile)
-    if prior is None or limit is None:
+    limit = None if prior is None else prior.quantiles.get(quantile)
+    if limit is None:
         return None
     d = prior.distances(Q)
     far = np.flatnonzero(d > limit)

@@ -4,8 +4,10 @@
 per configuration entry (``(nq,)``, read at the joints' q indices). The generic human gets
 its pose prior learned from motion capture instead (:class:`PosePrior`, :func:`posture_row`):
 the joints that move in the clips are held by their joint Gaussian (mean and covariance),
-the others by their mean and standard deviation; other figures get the rest pose and one
-weak ``sigma``. With a large ``sigma``
+the others by their mean and standard deviation; so does a BVH figure of the CMU skeleton
+layout when asked for (``Weights(pose_prior_model="cmu_bvh_pose")``: off by default,
+``models/priors/README.md`` says why); other figures get the rest pose and one weak
+``sigma``. With a large ``sigma``
 (default 1 rad) it barely moves well-observed joints (the bias on a joint is about
 ``(q - q_ref) / (sigma^2 H_data)``), but it gives the directions the data cannot see
 (the twist of a limb whose keypoints are collinear, redundant rotations of zero-length
@@ -17,14 +19,20 @@ from __future__ import annotations
 
 import functools
 import json
+from pathlib import Path
 
 import numpy as np
 
 from .._resources import model_path
+from ..errors import InputError
 from .base import RowBlock, RowKind, State
 
-__all__ = ["PosePrior", "Posture", "pose_prior", "pose_prior_covariance", "pose_prior_distances", "posture_row",
-           "rest_pose"]
+__all__ = ["PosePrior", "Posture", "pose_prior", "pose_prior_covariance", "pose_prior_distances", "pose_prior_names",
+           "posture_row", "prior_for", "rest_pose"]
+
+#: the largest angle (degrees) between a BVH figure's rest bone direction and the prior's
+#: clips' mean one: the CMU subjects' own skeletons differ by up to 9 degrees among themselves
+REST_DIRECTION_TOLERANCE_DEG = 25.0
 
 
 class Posture(RowKind):
@@ -75,8 +83,11 @@ class PosePrior(Posture):
 
     LOSSES = ("huber", "cauchy")
 
-    def __init__(self, figure, n_frames, q_ref, sigma, qcorr, cov, scale, active=None, k=None, loss="huber"):
+    def __init__(self, figure, n_frames, q_ref, sigma, qcorr, cov, scale, active=None, k=None, loss="huber",
+                 quantiles=None):
         super().__init__(figure, n_frames, q_ref, sigma, active)
+        #: percentiles of the prior's own clips' distances (:meth:`distances`), e.g. ``{"99": 9.0}``
+        self.quantiles = dict(quantiles or {})
         if loss not in self.LOSSES:
             raise ValueError(f"loss must be one of {self.LOSSES}, got {loss!r}")
         self.k = None if k is None else float(k)
@@ -143,11 +154,11 @@ class PosePrior(Posture):
         return rho + 0.5 * (rd**2).sum(axis=1)
 
 
-def pose_prior(figure, rest: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(q_ref (nq,), sigma (nq,)): the generic human's joint means and standard deviations
-    over motion capture (``models/priors/human_pose.json``, made by
-    ``tools/fit_pose_prior.py``); entries the file does not name keep ``rest`` and 1 rad."""
-    table = _pose_prior_file()["joints"]
+def pose_prior(figure, rest: np.ndarray, name: str = "human_pose") -> tuple[np.ndarray, np.ndarray]:
+    """(q_ref (nq,), sigma (nq,)): the joint means and standard deviations of pose prior
+    ``name`` (``models/priors/<name>.json``, made by ``tools/fit_pose_prior.py``; default the
+    generic human's); entries the file does not name keep ``rest`` and 1 rad."""
+    table = _pose_prior_file(name)["joints"]
     m = figure.model
     ref, sigma = np.array(rest, float), np.ones(figure.nq)
     for jid in range(1, m.njoints):
@@ -156,41 +167,97 @@ def pose_prior(figure, rest: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return ref, sigma
 
 
-def pose_prior_covariance(figure) -> tuple[np.ndarray, np.ndarray]:
-    """(q indices (d,), covariance (d, d)) of the joints that move in the pose prior's clips
-    (``models/priors/human_pose.json``, ``"correlated"``; radians squared)."""
-    names, cov = _pose_prior_file()["correlated"]
+def pose_prior_covariance(figure, name: str = "human_pose") -> tuple[np.ndarray, np.ndarray]:
+    """(q indices (d,), covariance (d, d)) of the joints that move in pose prior ``name``'s
+    clips (``"correlated"``; radians squared)."""
+    names, cov = _pose_prior_file(name)["correlated"]
     m = figure.model
     jid = {m.names[j]: j for j in range(1, m.njoints)}
     return np.array([m.idx_qs[jid[n]] for n in names], int), cov
 
 
-def pose_prior_distances() -> dict[str, float]:
+def pose_prior_distances(name: str = "human_pose") -> dict[str, float]:
     """Percentiles (``"50"``, ``"90"``, ``"99"``, ``"100"``) of the Mahalanobis distance
-    (:meth:`PosePrior.distances`) of the prior's own clips' frames from its mean."""
-    return dict(_pose_prior_file()["distances"])
+    (:meth:`PosePrior.distances`) of pose prior ``name``'s own clips' frames from its mean."""
+    return dict(_pose_prior_file(name)["distances"])
 
 
-@functools.lru_cache(maxsize=1)
-def _pose_prior_file() -> dict:
-    data = json.loads(model_path("priors", "human_pose.json").read_text())
-    corr = data["correlated"]
-    return {"joints": {k: (float(v[0]), float(v[1])) for k, v in data["joints"].items()},
-            "correlated": (list(corr["joints"]), np.array(corr["covariance"], float)),
-            "distances": {k: float(v) for k, v in corr.get("distance_quantiles", {}).items()}}
+def pose_prior_names() -> list[str]:
+    """The bundled pose priors (``models/priors/*.json``)."""
+    return sorted(p.stem for p in model_path("priors").glob("*.json"))
+
+
+@functools.cache
+def _pose_prior_file(name: str) -> dict:
+    path = Path(name) if name.endswith(".json") else model_path("priors", f"{name}.json")
+    if not path.is_file():
+        raise InputError(f"no pose prior {name!r}; bundled: {', '.join(pose_prior_names())}, or a JSON file made by "
+                         "tools/fit_pose_prior.py", field="weights.pose_prior_model")
+    try:
+        data = json.loads(path.read_text())
+        corr = data["correlated"]
+        return {"joints": {k: (float(v[0]), float(v[1])) for k, v in data["joints"].items()},
+                "correlated": (list(corr["joints"]), np.array(corr["covariance"], float)),
+                "distances": {k: float(v) for k, v in corr.get("distance_quantiles", {}).items()},
+                "rest_directions": {k: np.asarray(v, float) for k, v in data.get("rest_directions", {}).items()},
+                "figure": str(data.get("figure", ""))}
+    except (ValueError, KeyError, TypeError, IndexError) as exc:
+        raise InputError(f"not a pose prior made by tools/fit_pose_prior.py ({exc})", file=path,
+                         field="weights.pose_prior_model") from None
+
+
+def prior_for(figure, model: str = "auto") -> str | None:
+    """The pose prior that ``figure`` is held by under ``Weights.pose_prior_model``:
+    ``"auto"``: the generic human's (``"human_pose"``) for ``Figure.human()``, none for other
+    figures; ``"none"``; or a prior's name (``models/priors``) or JSON file, which must fit the
+    figure: every joint it correlates is one of the figure's one-DOF joints, and, for a prior
+    of a BVH layout, the figure's rest bone directions within
+    :data:`REST_DIRECTION_TOLERANCE_DEG` of the prior's clips' (same names, another rest pose,
+    would be another pose). Raises :class:`~pinrecon.errors.InputError` otherwise."""
+    if model == "none":
+        return None
+    if model == "auto":
+        return "human_pose" if figure.meta.get("generic") == "human" else None
+    data = _pose_prior_file(model)
+    m = figure.model
+    have = {m.names[j] for j in range(1, m.njoints) if m.nqs[j] == 1}
+    missing = [n for n in data["correlated"][0] if n not in have]
+    if missing:
+        raise InputError(f"pose prior {model!r} ({data['figure']}) does not fit figure {figure.name!r}: "
+                         f"{len(missing)} of its joints are not the figure's (e.g. {', '.join(missing[:3])})",
+                         field="weights.pose_prior_model")
+    dirs = data["rest_directions"]
+    if dirs:
+        bvh = figure.meta.get("bvh")
+        if not bvh:
+            raise InputError(f"pose prior {model!r} is for BVH figures ({data['figure']}); figure {figure.name!r} "
+                             "was not made from a BVH file", field="weights.pose_prior_model")
+        worst, where = 0.0, ""
+        for n, o in zip(bvh["names"], bvh["offsets"]):
+            o = np.asarray(o, float)
+            if n in dirs and np.linalg.norm(o) > 1e-9:
+                a = float(np.degrees(np.arccos(np.clip(o @ dirs[n] / np.linalg.norm(o), -1.0, 1.0))))
+                worst, where = max((worst, where), (a, n))
+        if worst > REST_DIRECTION_TOLERANCE_DEG:
+            raise InputError(f"pose prior {model!r} does not fit figure {figure.name!r}: its rest pose differs from "
+                             f"the prior's clips' (bone {where} {worst:.0f} degrees off, more than "
+                             f"{REST_DIRECTION_TOLERANCE_DEG:.0f}): the same joint angles would be another pose",
+                             field="weights.pose_prior_model")
+    return model
 
 
 def posture_row(figure, n_frames: int, weights, active=None) -> Posture | None:
-    """The posture prior of ``figure`` (``weights`` a :class:`pinrecon.problem.Weights`): the
-    generic human's pose prior learned from motion capture (:class:`PosePrior` at the scale
-    ``weights.pose_prior``, :func:`pose_prior`, :func:`pose_prior_covariance`), else the rest
-    pose with ``weights.sigma_posture`` (``None``: no row)."""
-    if weights.pose_prior is not None and figure.meta.get("generic") == "human":
-        ref, sigma = pose_prior(figure, rest_pose(figure))
-        qcorr, cov = pose_prior_covariance(figure)
+    """The posture prior of ``figure`` (``weights`` a :class:`pinrecon.problem.Weights`): a pose
+    prior learned from motion capture (:class:`PosePrior` at the scale ``weights.pose_prior``,
+    :func:`prior_for` chooses it by ``weights.pose_prior_model``: by default the generic
+    human's), else the rest pose with ``weights.sigma_posture`` (``None``: no row)."""
+    name = prior_for(figure, weights.pose_prior_model) if weights.pose_prior is not None else None
+    if name is not None:
+        ref, sigma = pose_prior(figure, rest_pose(figure), name)
+        qcorr, cov = pose_prior_covariance(figure, name)
         s = weights.pose_prior
         return PosePrior(figure, n_frames, ref, sigma * s, qcorr, cov, s, active, weights.pose_prior_k,
-                        weights.pose_prior_loss)
+                         weights.pose_prior_loss, pose_prior_distances(name))
     if weights.sigma_posture is None:
         return None
     return Posture(figure, n_frames, rest_pose(figure), weights.sigma_posture, active)
