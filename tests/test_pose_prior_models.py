@@ -23,11 +23,12 @@ from pinrecon.rows.posture import PosePrior, prior_for
 from pinrecon.synthetic import COCO_BODY_FROM_CMU, bundled_motion, project_tracks, side_camera
 
 CMU_UNIT_M = 0.056444
+ROOT = Path(__file__).resolve().parents[1]  # the checkout: tools/ is not installed
 CMU_STATIC = ["LHipJoint", "RHipJoint", "LeftShoulder", "RightShoulder"]
 
 
 def _tool():
-    spec = importlib.util.spec_from_file_location("fit_pose_prior", model_path("..", "tools", "fit_pose_prior.py"))
+    spec = importlib.util.spec_from_file_location("fit_pose_prior", ROOT / "tools" / "fit_pose_prior.py")
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     return mod
@@ -163,11 +164,17 @@ def test_cli_pose_prior_model(tmp_path, capsys):
     bvh = ["--figure", str(bundled_clip("walk")), "--length-scale", str(CMU_UNIT_M), "--lock", *CMU_STATIC,
            "--tracks", str(tmp_path / "tracks.json")]
     assert main(base + bvh + ["--out", str(tmp_path / "r.npz")]) == 0
+    assert "--pose-prior-model" not in capsys.readouterr().err
     res = pr.load_result(tmp_path / "r.npz")
     assert len(res.extras["prior_distance"]) == len(q)  # the prior's check ran, with this prior
     assert float(res.extras["prior_distance_limit"]) == pytest.approx(
         json.loads(model_path("priors", "cmu_bvh_pose.json").read_text())["correlated"]["distance_quantiles"]["99"])
     capsys.readouterr()
+    # without it, the summary says that it fits (the human's summary does not)
+    assert main(["reconstruct", "--camera", str(tmp_path / "cam.json"), *bvh, "--out", str(tmp_path / "r0.npz")]) == 0
+    assert "but 'cmu_bvh_pose' fits this figure" in capsys.readouterr().err
+    assert "but 'cmu_bvh_pose' fits this figure" in pr.load_result(tmp_path / "r0.npz").summary()
+    assert "fits this figure" not in pr.load_result(tmp_path / "r.npz").summary()
     human = ["--figure", "human", "--tracks", str(tmp_path / "coco.json")]
     assert main(base + human + ["--out", str(tmp_path / "h.npz")]) == 2
     err = capsys.readouterr().err.strip().splitlines()

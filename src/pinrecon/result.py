@@ -19,6 +19,7 @@ FAULT_EXTRAS_PREFIXES = ("hypothesis_", "repaired_", "outlier_", "prior_")
 from .errors import InputError
 from .figure import Figure, parse_keypoint_entries
 from .io.results import load_result_npz, save_result_npz
+from .rows.posture import unused_priors
 from .solver import SolveResult
 
 __all__ = ["Result", "hypothesis_spans", "load_result"]
@@ -156,6 +157,11 @@ class Result:
                              f"distance up to {d[a:b].max():.1f}")
             if len(sp) > limit:
                 lines.append(f"  ... and {len(sp) - limit} more")
+        if "prior_distance" not in x and self.figure is not None:
+            for name in unused_priors(self.figure):
+                lines.append(f"no learned pose prior in this solve, but {name!r} fits this figure: with detector "
+                             f"tracks and few keyframes it decides most limb depths (--pose-prior-model {name}; "
+                             "models/priors/README.md)")
         if "repaired_frames" in x:
             fr = np.asarray(x["repaired_frames"], int)
             shown = ", ".join(str(f) for f in fr[:20]) + (" ..." if len(fr) > 20 else "")

@@ -28,7 +28,7 @@ from ..errors import InputError
 from .base import RowBlock, RowKind, State
 
 __all__ = ["PosePrior", "Posture", "pose_prior", "pose_prior_covariance", "pose_prior_distances", "pose_prior_names",
-           "posture_row", "prior_for", "rest_pose"]
+           "posture_row", "prior_for", "rest_pose", "unused_priors"]
 
 #: the largest angle (degrees) between a BVH figure's rest bone direction and the prior's
 #: clips' mean one: the CMU subjects' own skeletons differ by up to 9 degrees among themselves
@@ -244,6 +244,19 @@ def prior_for(figure, model: str = "auto") -> str | None:
                              f"{REST_DIRECTION_TOLERANCE_DEG:.0f}): the same joint angles would be another pose",
                              field="weights.pose_prior_model")
     return model
+
+
+def unused_priors(figure) -> list[str]:
+    """The bundled pose priors that fit ``figure`` (:func:`prior_for`) but are not its default
+    (``"auto"``): what a user of a BVH figure may turn on (``--pose-prior-model``)."""
+    default, out = prior_for(figure), []
+    for name in pose_prior_names():
+        try:
+            if name != default and prior_for(figure, name):
+                out.append(name)
+        except InputError:
+            pass
+    return out
 
 
 def posture_row(figure, n_frames: int, weights, active=None) -> Posture | None:
