@@ -11,8 +11,9 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 
-def reference_positions(path, scale=1.0):
-    """Return (names, parents, positions (F, J, 3), end_names, end_positions (F, E, 3))."""
+def reference_clip(path):
+    """The file as written: (names, parents, OFFSETs (J, 3), channels per joint, end-site
+    names, end-site parents, end-site OFFSETs, motion values (F, C) in file units and degrees)."""
     tokens = open(path).read().split()
     names, parents, offsets, channels = [], [], [], []
     end_names, end_parents, end_offsets = [], [], []
@@ -57,7 +58,14 @@ def reference_positions(path, scale=1.0):
             i += 1
     n_frames = int(tokens[i + 2])
     values = np.array([float(x) for x in tokens[i + 6 :]]).reshape(n_frames, -1)
-    offsets = np.array(offsets) * scale
+    return names, parents, np.array(offsets), channels, end_names, end_parents, end_offsets, values
+
+
+def reference_positions(path, scale=1.0):
+    """Return (names, parents, positions (F, J, 3), end_names, end_positions (F, E, 3))."""
+    names, parents, offsets, channels, end_names, end_parents, end_offsets, values = reference_clip(path)
+    n_frames = len(values)
+    offsets = offsets * scale
     J = len(names)
     R_world = np.zeros((n_frames, J, 3, 3))
     p_world = np.zeros((n_frames, J, 3))

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from bvh_reference import reference_clip
 
 import pinrecon as pr
 from pinrecon._resources import bundled_clip, model_path
@@ -32,25 +33,6 @@ def _tool():
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     return mod
-
-
-def _plain_bvh(path):
-    """(joint names, OFFSETs, [(joint, channel)] in column order, motion (F, C)) by str.split."""
-    head, motion = Path(path).read_text().split("MOTION")
-    names, offsets, columns, current = [], [], [], None
-    for line in head.splitlines():
-        tok = line.split()
-        if tok and tok[0] in ("ROOT", "JOINT"):
-            current = tok[1]
-            names.append(current)
-        elif tok and tok[0] == "End":
-            current = None
-        elif tok and tok[0] == "OFFSET" and current is not None and len(offsets) < len(names):
-            offsets.append(np.array([float(v) for v in tok[1:4]]))
-        elif tok and tok[0] == "CHANNELS":
-            columns += [(current, c) for c in tok[2:]]
-    rows = [line.split() for line in motion.splitlines()[3:] if line.strip()]
-    return names, offsets, columns, np.array(rows, float)
 
 
 def test_which_prior_a_figure_gets():
@@ -110,7 +92,8 @@ def test_fit_tool_bvh_mode_against_the_text(tmp_path):
     out = tmp_path / "prior.json"
     _tool().main(["--figure", "bvh", str(src), "-o", str(out), "--max-frames", "1000"])
     data = json.loads(out.read_text())
-    names, offsets, columns, V = _plain_bvh(src)
+    names, _, offsets, channels, *_, V = reference_clip(src)  # the text parsed by tests/bvh_reference.py
+    columns = [(n, c) for n, ch in zip(names, channels) for c in ch]
     X = np.radians(V[1:][::4])  # the T-pose frame dropped, 120 -> 30 fps
     assert data["frames"] == len(X)
     checked = 0

@@ -43,6 +43,7 @@ import numpy as np
 import pinrecon as pr
 from pinrecon.io.bvh import load_bvh
 from pinrecon.problem import Weights
+from pinrecon.rows.posture import rest_directions
 
 #: COCO-17 body points -> the joints of the two CMU BVH releases (motionbuilder, 3ds Max)
 NAMES = {
@@ -87,10 +88,7 @@ def clip_channels(path, fps_out=30.0):
         warnings.simplefilter("ignore")
         m = load_bvh(path, 0.056444, skip_frames=1)
     step = max(1, round(m.fps / fps_out))
-    bvh = m.figure.meta["bvh"]
-    dirs = {n: np.asarray(o) / np.linalg.norm(o) for n, o in zip(bvh["names"], bvh["offsets"])
-            if np.linalg.norm(o) > 1e-9 and bvh["parents"][bvh["names"].index(n)] >= 0}
-    return m.figure, m.q[::step], dirs
+    return m.figure, m.q[::step], rest_directions(m.figure)
 
 
 def main(argv=None):
@@ -150,7 +148,7 @@ def main(argv=None):
                           "covariance": [[round(float(v), 7) for v in row] for row in C],
                           "distance_quantiles": {str(p): round(float(np.percentile(dist, p)), 3)
                                                  for p in (50, 90, 99, 100)}},
-           "clips": clips, "frames": int(len(Q)), "min_std_rad": a.min_std, "skipped": a.skip,
+           "clips": clips, "frames": len(Q), "min_std_rad": a.min_std, "skipped": a.skip,
            "made_by": "tools/fit_pose_prior.py" + (" --figure bvh" if bvh_mode else "")}
     if bvh_mode:
         mean_dir = {n: np.mean([d[n] for d in dirs], axis=0) for n in dirs[0]}

@@ -28,7 +28,7 @@ from ..errors import InputError
 from .base import RowBlock, RowKind, State
 
 __all__ = ["PosePrior", "Posture", "pose_prior", "pose_prior_covariance", "pose_prior_distances", "pose_prior_names",
-           "posture_row", "prior_for", "rest_pose", "unused_priors"]
+           "posture_row", "prior_for", "rest_directions", "rest_pose", "unused_priors"]
 
 #: the largest angle (degrees) between a BVH figure's rest bone direction and the prior's
 #: clips' mean one: the CMU subjects' own skeletons differ by up to 9 degrees among themselves
@@ -233,10 +233,9 @@ def prior_for(figure, model: str = "auto") -> str | None:
             raise InputError(f"pose prior {model!r} is for BVH figures ({data['figure']}); figure {figure.name!r} "
                              "was not made from a BVH file", field="weights.pose_prior_model")
         worst, where = 0.0, ""
-        for n, o in zip(bvh["names"], bvh["offsets"]):
-            o = np.asarray(o, float)
-            if n in dirs and np.linalg.norm(o) > 1e-9:
-                a = float(np.degrees(np.arccos(np.clip(o @ dirs[n] / np.linalg.norm(o), -1.0, 1.0))))
+        for n, u in rest_directions(figure).items():
+            if n in dirs:
+                a = float(np.degrees(np.arccos(np.clip(u @ dirs[n], -1.0, 1.0))))
                 worst, where = max((worst, where), (a, n))
         if worst > REST_DIRECTION_TOLERANCE_DEG:
             raise InputError(f"pose prior {model!r} does not fit figure {figure.name!r}: its rest pose differs from "
@@ -244,6 +243,15 @@ def prior_for(figure, model: str = "auto") -> str | None:
                              f"{REST_DIRECTION_TOLERANCE_DEG:.0f}): the same joint angles would be another pose",
                              field="weights.pose_prior_model")
     return model
+
+
+def rest_directions(figure) -> dict[str, np.ndarray]:
+    """A BVH figure's rest bone directions: each non-root joint's unit OFFSET (``meta["bvh"]``),
+    joints at their parent's position left out; what a BVH pose prior's clips stored
+    (``"rest_directions"``, ``tools/fit_pose_prior.py --figure bvh``) and :func:`prior_for` checks."""
+    bvh = figure.meta["bvh"]
+    return {n: np.asarray(o, float) / np.linalg.norm(o) for n, p, o in zip(bvh["names"], bvh["parents"], bvh["offsets"])
+            if p >= 0 and np.linalg.norm(o) > 1e-9}
 
 
 def unused_priors(figure) -> list[str]:
