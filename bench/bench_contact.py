@@ -111,7 +111,7 @@ def run(clip, case, rows):
     cmu_feet = feet if case == "lab" else ["LeftFoot", "RightFoot"]
     m = score(cfig.keypoints(q[::STEP])[:, cfig.keypoint_index(cmu_feet)], truth, fps)
     rows.append((clip, case, "clip itself", m, 0.0, int(truth[1].sum()), 0.0))
-    for label, kw in (("without", {}), ("with floor + contact rows", {"floor": "auto", "contact": "auto"})):
+    for label, kw in (("without", {"floor": "none"}), ("with floor + contact rows", {"floor": "auto", "contact": "auto"})):
         t0 = time.perf_counter()
         res = pr.reconstruct(fig, tracks, cam, keys, **kw)
         dt = time.perf_counter() - t0

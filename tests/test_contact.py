@@ -22,7 +22,7 @@ from pinrecon.errors import InputError, UnknownNameError
 from pinrecon.rows import State
 from pinrecon.rows.contact import ContactHeight, ContactVelocity
 from pinrecon.rows.floor import FloorPenetration
-from pinrecon.synthetic import smooth_motion
+from pinrecon.synthetic import bundled_motion, side_camera, smooth_motion
 
 T = 5
 
@@ -388,8 +388,8 @@ def generic_walk():
     tracks = pr.Tracks(cam.project(truth) + rng.normal(0.0, 1.0, truth.shape[:2] + (2,)), names, fps)
     keys = pr.tracks.keyframes_from_points([0, len(q) - 1], truth + rng.normal(0.0, 0.02, truth.shape), names, 0.02)
     fig = pr.Figure.human()
-    base = pr.reconstruct(fig, tracks, cam, keys)
-    feet = pr.reconstruct(fig, tracks, cam, keys, floor="auto", contact="auto")
+    base = pr.reconstruct(fig, tracks, cam, keys, floor="none")
+    feet = pr.reconstruct(fig, tracks, cam, keys)  # the human's default: floor and contacts "auto"
     return fig, names, truth, fps, base, feet
 
 
@@ -404,11 +404,39 @@ def test_feet_stage_refines_the_first_solve_on_the_generic_figure(generic_walk):
     assert mpjpe(res) <= mpjpe(base) + 0.5
     m = res.foot_metrics()
     assert m["contact_frames"] > 0.5 * len(truth) and m["skating_mps"] < 0.02
-    # the held points stay near the first solve (hold_m = 10 cm), the ankles move
-    held = fig.keypoint_index([n for n in names if "ankle" not in n])
+    # the held points stay near the first solve (hold_m = 10 cm), the legs (knees, ankles) move
+    held = fig.keypoint_index([n for n in names if "ankle" not in n and "knee" not in n])
     moved = np.linalg.norm(res.keypoints3d[:, held] - base.keypoints3d[:, held], axis=-1)
     assert np.median(moved) < 0.03
     assert "hold" in res.solve.costs
+    assert base.foot_metrics() is None and "floor:" not in base.summary()  # floor="none": off
+
+
+def test_feet_stage_is_the_generic_humans_default():
+    from pinrecon.reconstruct import default_feet
+
+    fig = pr.Figure.human()
+    one = pr.Tracks(np.zeros((3, 2, 2)), ["left_hip", "left_ankle"], 30.0)
+    arms = pr.Tracks(np.zeros((3, 2, 2)), ["left_shoulder", "left_wrist"], 30.0)
+    assert default_feet(fig, one) and default_feet(fig, [arms, one])
+    assert not default_feet(fig, arms) and not default_feet(fig, one, keypoints=["left_hip"])
+    walker = bundled_motion("walk")[0]  # a BVH skeleton: not by default
+    assert not default_feet(walker, pr.Tracks(np.zeros((3, 1, 2)), ["LeftFoot"], 30.0))
+    with pytest.raises(InputError, match="contacts need a floor") as e:
+        pr.reconstruct(fig, one, side_camera(np.tile(fig.neutral(), (3, 1)), 45.0), floor="none", contact="auto")
+    assert e.value.field == "contact"
+
+
+def test_leg_points_are_the_knees():
+    from pinrecon.contact import leg_points
+
+    fig = pr.Figure.human()
+    assert leg_points(fig, ["left_ankle", "right_ankle"]) == ["left_knee", "right_knee"]
+    names = ["left_hip", "left_knee", "left_ankle", "left_shoulder", "left_wrist"]
+    assert leg_points(fig, ["left_ankle"], names) == ["left_knee"]
+    assert leg_points(fig, ["left_ankle"], ["left_hip", "left_shoulder"]) == []
+    walker = bundled_motion("walk")[0]
+    assert leg_points(walker, foot_keypoints(walker)) == ["LeftLeg", "RightLeg"]
 
 
 def test_hold_rows_by_hand():

@@ -54,7 +54,7 @@ def page(tmp_path_factory):
     from pinrecon.workbench import Session, Workbench
 
     fig, Q, cam, tracks, keys = make_case()
-    start = pr.reconstruct(fig, tracks, cam, keys, weights=WEIGHTS)
+    start = pr.reconstruct(fig, tracks, cam, keys, weights=WEIGHTS, floor="none")  # the workbench's solve
     session = Session(fig, tracks, cam, keys, result=start, weights=WEIGHTS)
     out = tmp_path_factory.mktemp("wb_browser")
     wb = Workbench(session, port=_free_port(), out_dir=out)

@@ -381,7 +381,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--max-iterations", type=int, default=100)
     r.add_argument("--window", type=int, help="solve in overlapping windows of this many frames, in bounded memory "
                    "(default: windows of 2000 frames past 10000 frames; 0: one batch solve)")
-    r.add_argument("--floor", help="feet on the ground: 'auto' (estimated under the feet), 'y=0' / 'z=0', or "
+    r.add_argument("--floor", help="feet on the ground: 'auto' (estimated under the feet; the default for "
+                   "--figure human with a tracked ankle), 'none' (off), 'y=0' / 'z=0', or "
                    "'nx,ny,nz,d' (the plane n.p = d, n up); adds the contact rows (see --contact)")
     r.add_argument("--contact", help="foot contacts: 'auto' (from low height and speed; the default with --floor), "
                    "'none' (only keep feet above the floor), or a JSON file {foot keypoint: [[first, last], ...]} "

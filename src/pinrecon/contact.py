@@ -41,7 +41,7 @@ __all__ = [
     "FOOT_EXTRAS", "ContactSettings", "Floor", "FootContact", "body_up", "contact_heights", "contact_rows",
     "contacts_from_spec", "detect_contacts", "detection_settings", "estimate_floor", "foot_keypoints",
     "foot_metrics", "foot_speeds",
-    "ground_contacts", "hold_rows", "sole_offset", "solve_on_the_floor",
+    "ground_contacts", "hold_rows", "leg_points", "sole_offset", "solve_on_the_floor",
 ]
 
 #: a keypoint whose name contains one of these (case-insensitive) is a foot point
@@ -497,6 +497,29 @@ def hold_rows(problem, Q, g=None, foot_names: Sequence[str] = (), sigma_m: float
     return [Points3D(np.arange(T), idx, P[:, idx], float(sigma_m), name="hold", weights=w)]
 
 
+def leg_points(figure, foot_names: Sequence[str], names: Sequence[str] | None = None) -> list[str]:
+    """The keypoints among ``names`` (default: all) that a leg carries to its foot points:
+    moved by a joint whose motion moves a foot point and no keypoint off that foot's chain
+    (every keypoint it moves depends on no joint the foot does not). On the human: the knees
+    (the hip's rotation moves the knee and the ankle only); not the hips (at the hip joint's
+    centre they move with the pelvis) nor anything above. Decided from the keypoint
+    Jacobians' sparsity at three random configurations, for any figure."""
+    names = list(figure.keypoint_names if names is None else names)
+    feet = [n for n in foot_names if n in names]
+    if not feet:
+        return []
+    Q = np.stack([figure.random_configuration(s, unlimited=1.0) for s in (11, 12, 13)])
+    _, J = figure.keypoint_jacobians(Q)
+    moves = np.abs(J[:, figure.keypoint_index(names)]).max(axis=(0, 2)) > 1e-9  # (K, nv)
+    out: set[str] = set()
+    for f in feet:
+        chain = moves[names.index(f)]
+        inside = ~(moves & ~chain).any(axis=1)  # keypoints whose joints all lie on f's chain
+        leg = chain & ~(moves & ~inside[:, None]).any(axis=0)  # joints moving only those
+        out |= {n for n, m in zip(names, moves) if (m & leg).any()}
+    return [n for n in names if n in out and n not in foot_names]
+
+
 def _observed_names(problem) -> list[str] | None:
     """The keypoints the problem's data observe (tracks of every view, or markers)."""
     views = getattr(problem, "views", None) or []
@@ -587,6 +610,14 @@ def ground_contacts(problem, Q, floor="auto", contact="auto", settings: ContactS
     return FootContact(fl, names, C, height, clearance, extra={"seen_speed_mps": seen})
 
 
+def _free_globals(problem, g) -> np.ndarray:
+    """The global unknowns the feet stage may move: the proportions, not a camera's focal
+    length or scale (settled over the whole clip before it, and reported as such)."""
+    props = getattr(problem, "proportions", None)
+    n_p = len(props.names) if props is not None else 0
+    return np.arange(len(g)) < n_p
+
+
 def solve_on_the_floor(problem, res, floor="auto", contact="auto", *, settings: ContactSettings | None = None,
                        options=None, callback=None):
     """Solve ``problem`` again with the feet on the ground, from solution ``res``.
@@ -596,7 +627,9 @@ def solve_on_the_floor(problem, res, floor="auto", contact="auto", *, settings: 
     mapping stays, see :func:`contacts_from_spec`; ``False``: no contact rows, only the
     floor) from the current trajectory, adds the contact rows to the problem and solves
     warm from it. The points off the feet are held where ``res`` put them
-    (:func:`hold_rows`, ``settings.hold_m``). Returns (the problem with the last rows,
+    (:func:`hold_rows`, ``settings.hold_m``), but for the legs' points (:func:`leg_points`:
+    the knees, which must follow a planted ankle); a calibrated camera's focal length or
+    scale stays where the first solve put it. Returns (the problem with the last rows,
     the solve result, the :class:`FootContact` the last solve used).
     """
     s = settings or ContactSettings()
@@ -604,12 +637,14 @@ def solve_on_the_floor(problem, res, floor="auto", contact="auto", *, settings: 
     feet = None
     out_problem = problem
     names = _foot_names(problem)
-    hold = hold_rows(problem, x, globals_of(res), names, s.hold_m) if s.hold_m > 0 else []
+    free = names + leg_points(problem.figure, names, _observed_names(problem))
+    hold = hold_rows(problem, x, globals_of(res), free, s.hold_m) if s.hold_m > 0 else []
     for _ in range(int(s.rounds)):
         g = globals_of(res)
         feet = ground_contacts(problem, x, floor, contact, s, names=names, g=g)
         out_problem = problem.with_rows(contact_rows(problem.figure, feet, problem.fps, s, problem.factor) + hold)
-        res = solve(out_problem, x, options, callback, active=problem.active, **({} if g is None else {"g0": g}))
+        res = solve(out_problem, x, options, callback, active=problem.active,
+                    **({} if g is None else {"g0": g, "active_globals": _free_globals(problem, g)}))
         x = res.x
     return out_problem, res, feet
 

@@ -96,10 +96,11 @@ class ContactVelocity(RowKind):
             Bt = B.T
             J0 = -np.matmul(Bt, state.jacobians[s0][:, self.keypoints]) * w  # (N, M, d, nv)
             J1 = np.matmul(Bt, state.jacobians[s1][:, self.keypoints]) * w
-            J = np.stack([J0.reshape(N, d * M, -1), J1.reshape(N, d * M, -1)], axis=1)
+            nv = state.figure.nv  # explicit: with no contact frame (N = 0) -1 cannot be inferred
+            J = np.stack([J0.reshape(N, d * M, nv), J1.reshape(N, d * M, nv)], axis=1)
             if state.has_global_points:
                 dP = state.global_point_jacobians(s1, self.keypoints, Bt) - state.global_point_jacobians(s0, self.keypoints, Bt)
-                Jg, gcols = (dP * w).reshape(N, d * M, -1), state.proportion_cols
+                Jg, gcols = (dP * w).reshape(N, d * M, dP.shape[-1]), state.proportion_cols
         return RowBlock(self.frames, r, J, np.arange(state.figure.nv), self.name, Jg=Jg, gcols=gcols)
 
 
@@ -140,7 +141,7 @@ class ContactHeight(RowKind):
         if jacobian:
             N, M = r.shape
             Jk = np.einsum("a,nmav->nmv", self.normal, state.jacobians[slots][:, self.keypoints])
-            J = (Jk * self.sqrt_w[..., None]).reshape(N, 1, M, -1)
+            J = (Jk * self.sqrt_w[..., None]).reshape(N, 1, M, Jk.shape[-1])
             if state.has_global_points:
                 dP = state.global_point_jacobians(slots, self.keypoints, self.normal[None])[:, :, 0]
                 Jg, gcols = dP * self.sqrt_w[..., None], state.proportion_cols

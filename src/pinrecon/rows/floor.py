@@ -60,7 +60,7 @@ class FloorPenetration(RowKind):
             N, M = r.shape
             scale = (below * self.sqrt_w[:, None])[..., None]
             Jk = np.einsum("a,nmav->nmv", self.normal, state.jacobians[slots][:, self.keypoints]) * scale
-            J = Jk.reshape(N, 1, M, -1)
+            J = Jk.reshape(N, 1, M, Jk.shape[-1])
             if state.has_global_points:
                 dP = state.global_point_jacobians(slots, self.keypoints, self.normal[None])[:, :, 0]
                 Jg, gcols = dP * scale, state.proportion_cols

@@ -17,8 +17,9 @@ warm start the next solve begins from:
 
 :meth:`Session.solve` re-solves from the current trajectory: first only the window the
 edits touched (its edges held by joint keyframes on the current motion), then the whole
-sequence from there. The whole solve is the same problem ``pinrecon reconstruct`` solves
-with the same keyframes; the window only brings its start close.
+sequence from there. The whole solve is the same problem ``pinrecon reconstruct --floor
+none`` solves with the same keyframes (without the feet stage, the generic human's default
+there); the window only brings its start close.
 """
 
 from __future__ import annotations
@@ -420,6 +421,10 @@ class Session:
             # the workbench edits motion on the figure as given (fit proportions first with
             # `pinrecon reconstruct --save-figure` and open the calibrated figure)
             calibrate="none",
+            # nor the feet stage (the human's default in `pinrecon reconstruct`): a re-solve
+            # of a span would estimate its own floor; put the feet down afterwards with
+            # `pinrecon reconstruct --keyframes <saved keyframes> --floor auto`
+            floor="none",
         )
 
     def _warm_options(self, options: SolverOptions) -> SolverOptions:
