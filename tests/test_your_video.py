@@ -60,7 +60,7 @@ def test_three_commands_write_a_bvh_and_pictures(your_video):
 def test_against_pose2sims_four_camera_triangulation(your_video):
     """Measured: 141 mm PA-MPJPE with the default (the pose prior learned from walking,
     running and jumping: balancing on one leg is not among its poses), 107 mm with
-    ``--pose-prior none``; mean reprojection 7.5 px of a 1920 px image. The bound keeps
+    ``--pose-prior none``; mean reprojection 7.6 px of a 1920 px image. The bound keeps
     what there is; the gap to the lab (10 mm) is the point of the test's numbers."""
     res = pr.load_result(your_video / "result.npz")
     X, names = _trc(TRC)
