@@ -136,15 +136,21 @@ def _start(start, keys):
 _CACHE: dict = {}
 
 
-def run_detector(clip, azimuth, keyframes, start, mode, frames=None, figure="human", prior="auto"):
+def _feet(floor):
+    """``reconstruct``'s floor keyword for ``--floor``: nothing for "default" (its own default:
+    the feet on the ground for the generic human), else the value ("auto", "none")."""
+    return {} if floor in (None, "default") else {"floor": floor}
+
+
+def run_detector(clip, azimuth, keyframes, start, mode, frames=None, figure="human", prior="auto", floor="default"):
     key = (clip, azimuth, keyframes, _start(start, keyframes if keyframes != "none" else None), mode, frames, figure,
-           prior)
+           prior, floor)
     if key not in _CACHE:
-        _CACHE[key] = _run_detector(clip, azimuth, keyframes, start, mode, frames, figure, prior)
+        _CACHE[key] = _run_detector(clip, azimuth, keyframes, start, mode, frames, figure, prior, floor)
     return _CACHE[key]
 
 
-def _run_detector(clip, azimuth, keyframes, start, mode, frames=None, figure="human", prior="auto"):
+def _run_detector(clip, azimuth, keyframes, start, mode, frames=None, figure="human", prior="auto", floor="default"):
     tracks, cam, keys, P, log = detector_case(clip, azimuth, keyframes, frames, seed=int(azimuth))
     coco = list(tracks.names)
     if figure == "own":  # the clip's own skeleton: the same tracks under the CMU joint names
@@ -161,7 +167,7 @@ def _run_detector(clip, azimuth, keyframes, start, mode, frames=None, figure="hu
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         res = pr.reconstruct(fig, tracks, cam, keys, seed=_start(start, keys), weights=pr.Weights(pose_prior_model=prior),
-                             **kw)
+                             **kw, **_feet(floor))
     dt = time.perf_counter() - t0
     P_est = res.keypoints3d[:, res.figure.keypoint_index(tracks.names)]
     out = score(P_est, P, cam, coco)
@@ -173,7 +179,7 @@ def _run_detector(clip, azimuth, keyframes, start, mode, frames=None, figure="hu
     return out
 
 
-def run_lab(clip, start, frames=None, prior="auto"):
+def run_lab(clip, start, frames=None, prior="auto", floor="default"):
     fig, q, fps = bundled_motion(clip)
     if frames:
         q = q[:frames]
@@ -185,7 +191,8 @@ def run_lab(clip, start, frames=None, prior="auto"):
     t0 = time.perf_counter()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        res = pr.reconstruct(fig, tracks, cam, keys, seed=_start(start, keys), weights=pr.Weights(pose_prior_model=prior))
+        res = pr.reconstruct(fig, tracks, cam, keys, seed=_start(start, keys), weights=pr.Weights(pose_prior_model=prior),
+                             **_feet(floor))
     dt = time.perf_counter() - t0
     coco = {v: k for k, v in COCO_BODY_FROM_CMU.items()}
     idx = fig.keypoint_index(names)
@@ -214,6 +221,9 @@ def main(argv=None):
     ap.add_argument("--pose-prior-model", default="auto",
                     help="Weights.pose_prior_model for every row, the lab case's too (cmu_bvh_pose: the CMU BVH "
                     "skeleton's prior, with --figure own)")
+    ap.add_argument("--floor", choices=["default", "auto", "none"], default="default",
+                    help="the feet stage for every row, the lab case's too: reconstruct's default (on for the "
+                    "generic human), 'auto' (on for any figure) or 'none' (off)")
     a = ap.parse_args(argv)
     if a.quick:
         a.clips, a.angles, a.frames = ["walk"], [45.0], a.frames or 150
@@ -224,7 +234,7 @@ def main(argv=None):
     if a.uncalibrated and mode:
         mode = "none"
     what = "the clip's own skeleton (ASF limits)" if a.figure == "own" else "Figure.human()"
-    what += f", pose prior {a.pose_prior_model!r}"
+    what += f", pose prior {a.pose_prior_model!r}, floor {a.floor!r}"
     cal = mode not in (None, "none") and a.figure == "human"  # the own skeleton is the subject's: never calibrated
     print(f"mode: {what}, {'calibrated (calibrate=' + repr(mode) + ')' if cal else 'uncalibrated'}"
           f" (reconstruct {'takes' if calibration_mode() else 'does not take'} calibrate=)")
@@ -236,7 +246,7 @@ def main(argv=None):
     for clip in a.clips:
         for kf in a.keyframes:
             for start in a.starts:
-                rows = [run_detector(clip, az, kf, start, mode, a.frames, a.figure, a.pose_prior_model)
+                rows = [run_detector(clip, az, kf, start, mode, a.frames, a.figure, a.pose_prior_model, a.floor)
                         for az in a.angles]
                 m = {k: float(np.mean([r[k] for r in rows])) for k in rows[0]}
                 worst = max(r["flips"] for r in rows)
@@ -256,7 +266,7 @@ def main(argv=None):
     print("|---|---|---:|---:|---:|---:|---:|---|")
     for clip in [c for c in a.clips if c in ("walk", "run")]:
         for start in a.lab_starts:
-            r = run_lab(clip, start, a.frames, a.pose_prior_model)
+            r = run_lab(clip, start, a.frames, a.pose_prior_model, a.floor)
             print(f"| {clip} | {start} | {r['pa']:.1f} | {r['flips']:.1f} | {r['dz']:.1f} | {r['mpjpe']:.1f} "
                   f"| {r['time']:.0f} | {'yes' if r['flips'] <= 2.0 else 'no'} |", flush=True)
 
