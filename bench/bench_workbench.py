@@ -31,13 +31,13 @@ from pinrecon import synthetic as syn
 from pinrecon.workbench import Session
 
 
-def case(n_frames):
+def case(n_frames, floor=None):
     fig, Q = syn.human_walk(n_frames, 30.0)
     cam = syn.side_camera(Q, 45.0)
     tracks = syn.project_tracks(fig, Q, cam, fps=30.0, noise_px=1.0, seed=1)
     keys = syn.point_keyframes(fig, Q, sorted(set(range(0, n_frames, 60)) | {n_frames - 1}), sigma_m=0.02)
     t0 = time.perf_counter()
-    start = pr.reconstruct(fig, tracks, cam, keys, floor="none")  # the workbench solves without the feet stage
+    start = pr.reconstruct(fig, tracks, cam, keys, floor=floor)
     return fig, cam, tracks, keys, start, time.perf_counter() - t0
 
 
@@ -51,15 +51,17 @@ def edit(session, kind, frame):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--frames", type=int, nargs="+", default=[300, 1000])
+    ap.add_argument("--floor", default=None, help="as for reconstruct: the default (None: the feet on the ground "
+                    "for the human, in the first solve and the whole re-solves) or 'none'")
     args = ap.parse_args()
     rows = []
     for n in args.frames:
-        fig, cam, tracks, keys, start, t_cold = case(n)
+        fig, cam, tracks, keys, start, t_cold = case(n, args.floor)
         for kind in ("flip", "joint"):
-            s = Session(fig, tracks, cam, keys, result=start)
+            s = Session(fig, tracks, cam, keys, result=start, floor=args.floor)
             edit(s, kind, n // 2)
             rep = s.solve()
-            s2 = Session(fig, tracks, cam, keys, result=start)
+            s2 = Session(fig, tracks, cam, keys, result=start, floor=args.floor)
             edit(s2, kind, n // 2)
             rep2 = s2.solve(window=False)
             w = f"{rep.window[0]}-{rep.window[1]}" if rep.window else "-"

@@ -420,6 +420,9 @@ def test_feet_stage_is_the_generic_humans_default():
     arms = pr.Tracks(np.zeros((3, 2, 2)), ["left_shoulder", "left_wrist"], 30.0)
     assert default_feet(fig, one) and default_feet(fig, [arms, one])
     assert not default_feet(fig, arms) and not default_feet(fig, one, keypoints=["left_hip"])
+    hip_only = np.concatenate([np.zeros((3, 1, 2)), np.full((3, 1, 2), np.nan)], axis=1)
+    unseen = pr.Tracks(hip_only, ["left_hip", "left_ankle"], 30.0)
+    assert not default_feet(fig, unseen)  # an ankle never seen: no contact to detect
     walker = bundled_motion("walk")[0]  # a BVH skeleton: not by default
     assert not default_feet(walker, pr.Tracks(np.zeros((3, 1, 2)), ["LeftFoot"], 30.0))
     with pytest.raises(InputError, match="contacts need a floor") as e:

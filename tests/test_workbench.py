@@ -9,7 +9,16 @@ import re
 
 import numpy as np
 import pytest
-from workbench_case import FLIP_FRAME, GAP, SEGMENT, WEIGHTS, all_flips, flipped_frames, make_case
+from workbench_case import (
+    FLIP_FRAME,
+    FLOOR,
+    GAP,
+    SEGMENT,
+    WEIGHTS,
+    all_flips,
+    flipped_frames,
+    make_case,
+)
 
 import pinrecon as pr
 from pinrecon.cli import main
@@ -27,14 +36,14 @@ def start(case):
     """The batch solve of the case (what `pinrecon reconstruct` gives): the right shank
     is flipped inside the marker drop-out."""
     fig, Q, cam, tracks, keys = case
-    return pr.reconstruct(fig, tracks, cam, keys, weights=WEIGHTS, floor="none")  # the workbench's solve
+    return pr.reconstruct(fig, tracks, cam, keys, weights=WEIGHTS, floor=FLOOR)
 
 
 @pytest.fixture(scope="module")
 def fixed(case, start, tmp_path_factory):
     """One flip at frame 30, one re-solve, saved."""
     fig, Q, cam, tracks, keys = case
-    s = Session(fig, tracks, cam, keys, result=start, weights=WEIGHTS)
+    s = Session(fig, tracks, cam, keys, result=start, weights=WEIGHTS, floor=FLOOR)
     before = s.q
     key = s.flip(FLIP_FRAME, SEGMENT)
     warm = s.q
@@ -56,7 +65,7 @@ def test_the_case_has_one_wrongly_flipped_limb(case, start):
 def test_resolving_without_the_flip_keeps_it_flipped(case, start):
     # the wrong side is a local minimum: a warm re-solve alone does not leave it
     fig, Q, cam, tracks, keys = case
-    s = Session(fig, tracks, cam, keys, result=start, weights=WEIGHTS)
+    s = Session(fig, tracks, cam, keys, result=start, weights=WEIGHTS, floor=FLOOR)
     s.set_joint(FLIP_FRAME, "left_elbow_Z", s.joint_value(FLIP_FRAME, "left_elbow_Z"))  # a no-op edit
     s.solve()
     assert len(flipped_frames(fig, cam, s.keypoints3d, Q, "right_knee", "right_ankle")) >= 15
@@ -113,10 +122,24 @@ def test_saved_keyframes_reproduce_the_result_through_the_command(case, fixed, t
     assert all_flips(fig, cam, again.keypoints3d, Q) == {}
 
 
+def test_whole_resolve_puts_the_feet_down_as_reconstruct_does(case, start):
+    """Without ``floor`` the session takes reconstruct's default (the generic human: feet on
+    the ground) for the whole solve; ``floor="none"`` (the case's setting) leaves it out."""
+    fig, Q, cam, tracks, keys = case
+    s = Session(fig, tracks, cam, keys, result=start, weights=WEIGHTS)
+    s.solve(window=False)
+    m = s.result().foot_metrics()
+    assert m is not None and m["contact_frames"] > 0.2 * len(Q)
+    assert "floor:" in s.result().summary()
+    off = Session(fig, tracks, cam, keys, result=start, weights=WEIGHTS, floor=FLOOR)
+    off.solve(window=False)
+    assert off.result().foot_metrics() is None
+
+
 def test_reload_gives_the_same_state(case, fixed):
     fig, Q, cam, tracks, keys = case
     s, *_, out = fixed
-    r = Session(fig, tracks, cam, pr.load_keyframes(out / "keyframes.json"), result=pr.load_result(out / "result.npz"), weights=WEIGHTS)
+    r = Session(fig, tracks, cam, pr.load_keyframes(out / "keyframes.json"), result=pr.load_result(out / "result.npz"), weights=WEIGHTS, floor=FLOOR)
     np.testing.assert_allclose(r.q, s.q, atol=1e-12)
     assert r.keyframes.to_dict() == json.loads((out / "keyframes.json").read_text())
     assert len(r.keyframes) == len(keys) + 1
@@ -125,7 +148,7 @@ def test_reload_gives_the_same_state(case, fixed):
 
 def test_undo_redo_steps_through_edits_and_solves(case, start):
     fig, Q, cam, tracks, keys = case
-    s = Session(fig, tracks, cam, keys, result=start, weights=WEIGHTS)
+    s = Session(fig, tracks, cam, keys, result=start, weights=WEIGHTS, floor=FLOOR)
     q0, n0 = s.q, len(s.keyframes)
     assert not s.can_undo and s.undo() is False
     s.flip(FLIP_FRAME, SEGMENT)
@@ -146,7 +169,7 @@ def test_undo_redo_steps_through_edits_and_solves(case, start):
 
 def test_point_keyframe_moves_the_keypoint(case, start):
     fig, Q, cam, tracks, keys = case
-    s = Session(fig, tracks, cam, keys, result=start, weights=WEIGHTS)
+    s = Session(fig, tracks, cam, keys, result=start, weights=WEIGHTS, floor=FLOOR)
     i = list(fig.keypoint_names).index("left_wrist")
     p = s.keypoints3d[60, i]
     target = p + 0.15 * cam.R[2]  # 15 cm deeper along the camera axis: the image does not see it
@@ -162,7 +185,7 @@ def test_point_keyframe_moves_the_keypoint(case, start):
 
 def test_joint_keyframe_sets_the_angle(case, start):
     fig, Q, cam, tracks, keys = case
-    s = Session(fig, tracks, cam, keys, result=start, weights=WEIGHTS)
+    s = Session(fig, tracks, cam, keys, result=start, weights=WEIGHTS, floor=FLOOR)
     v0 = s.joint_value(70, "right_elbow_Z")
     key = s.set_joint(70, "right_elbow_Z", v0 + 0.3)
     assert float(key.joints["right_elbow_Z"]) == pytest.approx(v0 + 0.3)
@@ -174,7 +197,7 @@ def test_joint_keyframe_sets_the_angle(case, start):
 
 def test_bad_edits_raise_typed_errors(case, start):
     fig, Q, cam, tracks, keys = case
-    s = Session(fig, tracks, cam, keys, result=start, weights=WEIGHTS)
+    s = Session(fig, tracks, cam, keys, result=start, weights=WEIGHTS, floor=FLOOR)
     with pytest.raises(pr.InputError, match="right_knee>right_ankle"):
         s.flip(10, "tail>tip")
     with pytest.raises(pr.InputError, match="frame 500"):
@@ -186,7 +209,7 @@ def test_bad_edits_raise_typed_errors(case, start):
     with pytest.raises(pr.InputError, match="no keyframe 99"):
         s.delete_keyframe(99)
     with pytest.raises(pr.InputError, match="result.q"):
-        Session(fig, tracks, cam, keys, result=pr.Result.from_motion(fig, Q[:10], 30.0), weights=WEIGHTS)
+        Session(fig, tracks, cam, keys, result=pr.Result.from_motion(fig, Q[:10], 30.0), weights=WEIGHTS, floor=FLOOR)
 
 
 def test_mirror_and_span_geometry():
@@ -266,11 +289,11 @@ def test_uncertain_spans_come_from_the_result_and_are_drawn(case, start):
     )
     for k in ("prior_distance", "prior_distance_limit", "prior_unfamiliar_spans"):
         extras.pop(k, None)
-    s = Session(fig, tracks, cam, keys, result=replace(start, extras=extras), weights=WEIGHTS)
+    s = Session(fig, tracks, cam, keys, result=replace(start, extras=extras), weights=WEIGHTS, floor=FLOOR)
     assert s.uncertain_spans() == [(20, 45, "right_hip-right_knee-right_ankle")]
-    assert Session(fig, tracks, cam, keys, result=replace(start, extras={}), weights=WEIGHTS).uncertain_spans() == []
+    assert Session(fig, tracks, cam, keys, result=replace(start, extras={}), weights=WEIGHTS, floor=FLOOR).uncertain_spans() == []
     # poses the pose prior does not know are uncertain for every limb
-    both = Session(fig, tracks, cam, keys, weights=WEIGHTS,
+    both = Session(fig, tracks, cam, keys, weights=WEIGHTS, floor=FLOOR,
                    result=replace(start, extras={**extras, "prior_unfamiliar_spans": np.array([[50, 58]])}))
     assert both.uncertain_spans() == [(20, 45, "right_hip-right_knee-right_ankle"), (50, 58, UNFAMILIAR)]
     W, H = 480, 90

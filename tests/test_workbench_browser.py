@@ -18,7 +18,7 @@ import time
 
 import numpy as np
 import pytest
-from workbench_case import FLIP_FRAME, SEGMENT, WEIGHTS, flipped_frames, make_case
+from workbench_case import FLIP_FRAME, FLOOR, SEGMENT, WEIGHTS, flipped_frames, make_case
 
 CHROMIUM, DRIVER = shutil.which("chromium") or "/usr/bin/chromium", shutil.which("chromedriver") or "/usr/bin/chromedriver"
 
@@ -54,8 +54,8 @@ def page(tmp_path_factory):
     from pinrecon.workbench import Session, Workbench
 
     fig, Q, cam, tracks, keys = make_case()
-    start = pr.reconstruct(fig, tracks, cam, keys, weights=WEIGHTS, floor="none")  # the workbench's solve
-    session = Session(fig, tracks, cam, keys, result=start, weights=WEIGHTS)
+    start = pr.reconstruct(fig, tracks, cam, keys, weights=WEIGHTS, floor=FLOOR)
+    session = Session(fig, tracks, cam, keys, result=start, weights=WEIGHTS, floor=FLOOR)
     out = tmp_path_factory.mktemp("wb_browser")
     wb = Workbench(session, port=_free_port(), out_dir=out)
     opts = webdriver.ChromeOptions()

@@ -29,6 +29,9 @@ SEGMENT = "right_knee>right_ankle"
 FLIP_FRAME = 30
 #: the rest-pose posture prior the case was built with
 WEIGHTS = pr.Weights(pose_prior=None)
+#: ... and without the feet stage (the command: ``--floor none``): with the feet on the
+#: ground the batch solve keeps the shank flipped in 13 frames instead of 20
+FLOOR = "none"
 
 
 def make_case():

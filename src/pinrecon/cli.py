@@ -447,6 +447,8 @@ def build_parser() -> argparse.ArgumentParser:
     ed.add_argument("--sigma-px", type=float, help="2D noise, pixels (default 2)")
     ed.add_argument("--loss", choices=["l2", "huber", "cauchy"], help="measurement loss (default l2)")
     add_pose_prior_argument(ed)
+    ed.add_argument("--floor", help="feet on the ground in the whole re-solves, as for reconstruct ('auto', "
+                    "'none', a plane; default: reconstruct's, on for --figure human)")
     ed.add_argument("--out", default="pinrecon-edit", help="folder for saves and exports (default ./pinrecon-edit)")
     ed.add_argument("--keyframes-out", help="where Save writes the keyframes (default OUT/keyframes.json)")
     ed.add_argument("--result-out", help="where Save writes the result (default OUT/result.npz)")

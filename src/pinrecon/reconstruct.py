@@ -105,13 +105,14 @@ def _lengths_measurable(auto_projection: str | None) -> bool:
 def default_feet(figure, tracks, keypoints=None) -> bool:
     """Whether :func:`reconstruct` puts the feet on the ground when neither ``floor`` nor
     ``contact`` is given: for the generic human (``meta["generic"] == "human"``, calibrated
-    or not) whose tracks hold a foot point (an ankle, heel or toe). Other figures (a robot,
+    or not) whose tracks see a foot point (an ankle, heel or toe) in some frame. Other figures (a robot,
     a BVH skeleton) may not stand on a floor; pass ``floor="auto"`` for them. Measured in
     ``bench/README.md`` (issue 10's detector walk with first and last keyframes: flipped
     limb segments 6.0 -> 4.4 %; the run, whose ankles are never still, unchanged)."""
     if (getattr(figure, "meta", None) or {}).get("generic") != "human":
         return False
-    names = {n for t in (tracks if isinstance(tracks, (list, tuple)) else [tracks]) for n in t.names}
+    names = {n for t in (tracks if isinstance(tracks, (list, tuple)) else [tracks])
+             for n, seen in zip(t.names, np.isfinite(np.asarray(t.points, float)).all(axis=-1).any(axis=0)) if seen}
     if keypoints is not None:
         names &= set(keypoints)
     return bool(foot_keypoints(figure, sorted(names & set(figure.keypoint_names))))

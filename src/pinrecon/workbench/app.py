@@ -209,7 +209,7 @@ class Workbench:
         kf = load_keyframes(self.kf_path.value)
         res = load_result(self.npz_path.value)
         self.session = Session(s.figure, s.tracks, s.camera, kf, result=res, fps_out=s.fps_out, weights=s.weights,
-                               options=s.options)
+                               floor=s.floor, options=s.options)
 
     def _key_index(self) -> int:
         v = self.key_list.value
@@ -386,7 +386,8 @@ def edit_from_args(args, figure=None, weights: dict | None = None) -> int:
     keys = load_keyframes(args.keyframes) if args.keyframes else None
     if result is None:
         print("pinrecon edit: solving once before serving ...", file=__import__("sys").stderr, flush=True)
-    session = Session(figure, tracks, camera, keys, result=result, fps_out=args.fps_out, weights=Weights(**(weights or {})))
+    session = Session(figure, tracks, camera, keys, result=result, fps_out=args.fps_out, weights=Weights(**(weights or {})),
+                      floor=getattr(args, "floor", None))
     out = Path(args.out)
     serve(session, host=args.host, port=args.port, open_browser=not args.no_browser, out_dir=out,
           keyframes_path=args.keyframes_out or out / "keyframes.json", result_path=args.result_out or out / "result.npz")

@@ -17,9 +17,9 @@ warm start the next solve begins from:
 
 :meth:`Session.solve` re-solves from the current trajectory: first only the window the
 edits touched (its edges held by joint keyframes on the current motion), then the whole
-sequence from there. The whole solve is the same problem ``pinrecon reconstruct --floor
-none`` solves with the same keyframes (without the feet stage, the generic human's default
-there); the window only brings its start close.
+sequence from there. The whole solve is the same problem ``pinrecon reconstruct`` solves
+with the same keyframes (and the same ``floor``: the feet on the ground by default for the
+generic human); the window, solved without the feet stage, only brings its start close.
 """
 
 from __future__ import annotations
@@ -87,6 +87,9 @@ class Session:
     Parameters
     ----------
     figure, tracks, camera, keyframes, fps_out, weights : as for :func:`pinrecon.reconstruct`.
+    floor : as for :func:`pinrecon.reconstruct` (default: its default, the feet on the ground
+        for the generic human; ``"none"``: off), for the whole solves; the window solve goes
+        without it (a span would estimate a floor of its own).
     result : a :class:`pinrecon.Result` to start from (e.g. ``load_result("result.npz")``);
         without one, the session solves once from scratch.
     options : :class:`pinrecon.SolverOptions` of the whole re-solve.
@@ -111,6 +114,7 @@ class Session:
         result: Result | None = None,
         fps_out: float | None = None,
         weights: Weights | None = None,
+        floor=None,
         options: SolverOptions | None = None,
         sigma_flip_m: float = 0.02,
         sigma_point_m: float = 0.02,
@@ -125,6 +129,7 @@ class Session:
             raise InputError("the workbench takes one camera (an Orthographic or Perspective)", field="camera")
         self.figure, self.tracks, self.camera = figure, tracks, camera
         self.weights = weights or Weights()
+        self.floor = floor
         self.options = options or SolverOptions()
         self.fps_out = fps_out
         self.factor = 1 if fps_out is None else int(round(float(fps_out) / tracks.fps))
@@ -421,10 +426,9 @@ class Session:
             # the workbench edits motion on the figure as given (fit proportions first with
             # `pinrecon reconstruct --save-figure` and open the calibrated figure)
             calibrate="none",
-            # nor the feet stage (the human's default in `pinrecon reconstruct`): a re-solve
-            # of a span would estimate its own floor; put the feet down afterwards with
-            # `pinrecon reconstruct --keyframes <saved keyframes> --floor auto`
-            floor="none",
+            # a window's solve (tracks given) goes without the feet stage: it would estimate
+            # a floor of its own from the span; the whole solve then puts the feet down
+            floor="none" if tracks is not None else self.floor,
         )
 
     def _warm_options(self, options: SolverOptions) -> SolverOptions:
