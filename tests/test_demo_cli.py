@@ -150,3 +150,6 @@ def test_pose_prior_flags_reach_the_weights_of_reconstruct_and_edit(monkeypatch)
     monkeypatch.setattr(app, "edit_from_args", lambda args, figure=None, weights=None: seen.update(weights) or 0)
     assert main(["edit", *base, "--sigma-px", "3", "--pose-prior-loss", "cauchy"]) == 0
     assert seen == {"sigma_px": 3.0, "pose_prior_loss": "cauchy", "pose_prior_k": 3.0}
+    # the feet stage: reconstruct's default unless --floor says otherwise, on edit too
+    assert p.parse_args(["edit", *base]).floor is None and p.parse_args(r).floor is None
+    assert p.parse_args(["edit", *base, "--floor", "none"]).floor == "none"
