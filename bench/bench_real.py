@@ -142,15 +142,23 @@ def _feet(floor):
     return {} if floor in (None, "default") else {"floor": floor}
 
 
-def run_detector(clip, azimuth, keyframes, start, mode, frames=None, figure="human", prior="auto", floor="default"):
+def run_detector(clip, azimuth, keyframes, start, mode, frames=None, figure="human", prior="auto", floor="default",
+                 camera="true"):
     key = (clip, azimuth, keyframes, _start(start, keyframes if keyframes != "none" else None), mode, frames, figure,
-           prior, floor)
+           prior, floor, camera)
     if key not in _CACHE:
-        _CACHE[key] = _run_detector(clip, azimuth, keyframes, start, mode, frames, figure, prior, floor)
+        _CACHE[key] = _run_detector(clip, azimuth, keyframes, start, mode, frames, figure, prior, floor, camera)
     return _CACHE[key]
 
 
-def _run_detector(clip, azimuth, keyframes, start, mode, frames=None, figure="human", prior="auto", floor="default"):
+def in_true_world(P_est, fitted, true):
+    """Points of a result whose world is its fitted camera's (the auto camera) carried into
+    the true camera's world through the camera frame both describe (what the camera sees)."""
+    return (fitted.camera_points(P_est) - true.t) @ true.R
+
+
+def _run_detector(clip, azimuth, keyframes, start, mode, frames=None, figure="human", prior="auto", floor="default",
+                  camera="true"):
     tracks, cam, keys, P, log = detector_case(clip, azimuth, keyframes, frames, seed=int(azimuth))
     coco = list(tracks.names)
     if figure == "own":  # the clip's own skeleton: the same tracks under the CMU joint names
@@ -163,17 +171,22 @@ def _run_detector(clip, azimuth, keyframes, start, mode, frames=None, figure="hu
     else:
         fig = pr.Figure.human()
     kw = {"calibrate": mode if figure == "human" else "none"} if mode else {}
+    if camera == "auto":  # no camera file: the image size only; calibrate takes reconstruct's default (+ camera)
+        kw = {"image_size": (1920, 1080)} if figure == "human" else {"image_size": (1920, 1080), "calibrate": "camera"}
     t0 = time.perf_counter()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        res = pr.reconstruct(fig, tracks, cam, keys, seed=_start(start, keys), weights=pr.Weights(pose_prior_model=prior),
-                             **kw, **_feet(floor))
+        res = pr.reconstruct(fig, tracks, "auto" if camera == "auto" else cam, keys, seed=_start(start, keys),
+                             weights=pr.Weights(pose_prior_model=prior), **kw, **_feet(floor))
     dt = time.perf_counter() - t0
     P_est = res.keypoints3d[:, res.figure.keypoint_index(tracks.names)]
+    if camera == "auto" and keys is None:  # its world is the fitted camera's; with keyframes the clip's
+        P_est = in_true_world(P_est, res.cameras[0], cam)
     out = score(P_est, P, cam, coco)
     out["flips_flagged"], out["frames_flagged"] = flagged(res.extras, P_est, P, cam, coco)
     swapped = set(np.asarray(log["swapped_frames"]).tolist())
     repaired = set(np.asarray(res.extras.get("repaired_frames", [])).tolist())
+    out["focal"] = float(res.cameras[0].K[0, 0]) if camera == "auto" else float("nan")
     out.update(time=dt, swaps_found=len(swapped & repaired), swaps=len(swapped), false_repairs=len(repaired - swapped),
                outliers=len(res.extras.get("outlier_frames", [])), injected=len(log["outliers"]))
     return out
@@ -224,6 +237,9 @@ def main(argv=None):
     ap.add_argument("--floor", choices=["default", "auto", "none"], default="default",
                     help="the feet stage for every row, the lab case's too: reconstruct's default (on for the "
                     "generic human), 'auto' (on for any figure) or 'none' (off)")
+    ap.add_argument("--camera", choices=["true", "auto"], default="true",
+                    help="the camera that made the tracks (default) or none: camera='auto' with the image size "
+                    "(1920 x 1080; the detector rows only; the fitted focal length is printed, true 1200 px)")
     a = ap.parse_args(argv)
     if a.quick:
         a.clips, a.angles, a.frames = ["walk"], [45.0], a.frames or 150
@@ -234,7 +250,7 @@ def main(argv=None):
     if a.uncalibrated and mode:
         mode = "none"
     what = "the clip's own skeleton (ASF limits)" if a.figure == "own" else "Figure.human()"
-    what += f", pose prior {a.pose_prior_model!r}, floor {a.floor!r}"
+    what += f", pose prior {a.pose_prior_model!r}, floor {a.floor!r}, camera {a.camera!r}"
     cal = mode not in (None, "none") and a.figure == "human"  # the own skeleton is the subject's: never calibrated
     print(f"mode: {what}, {'calibrated (calibrate=' + repr(mode) + ')' if cal else 'uncalibrated'}"
           f" (reconstruct {'takes' if calibration_mode() else 'does not take'} calibrate=)")
@@ -246,8 +262,8 @@ def main(argv=None):
     for clip in a.clips:
         for kf in a.keyframes:
             for start in a.starts:
-                rows = [run_detector(clip, az, kf, start, mode, a.frames, a.figure, a.pose_prior_model, a.floor)
-                        for az in a.angles]
+                rows = [run_detector(clip, az, kf, start, mode, a.frames, a.figure, a.pose_prior_model, a.floor,
+                                     a.camera) for az in a.angles]
                 m = {k: float(np.mean([r[k] for r in rows])) for k in rows[0]}
                 worst = max(r["flips"] for r in rows)
                 pa_max, fl_max = LIMITS[kf]
@@ -257,7 +273,8 @@ def main(argv=None):
                       f"{sum(r['swaps'] for r in rows)} | {sum(r['false_repairs'] for r in rows)} "
                       f"| {sum(r['outliers'] for r in rows)}/{sum(r['injected'] for r in rows)} "
                       f"| {m['flips_flagged']:.0f} | {m['frames_flagged']:.0f} | {m['time']:.0f} "
-                      f"| {ok} |", flush=True)
+                      f"| {ok} |" + (" focal " + ", ".join(f"{r['focal']:.0f}" for r in rows) + " px"
+                                     if a.camera == "auto" else ""), flush=True)
     if a.no_lab:
         return
     print()

@@ -42,6 +42,8 @@ from .starts.camera_auto import (
     auto_camera,
     camera_scale_from_keyframes,
     image_size_of,
+    keyframe_correspondences,
+    keyframe_focal_interval,
     settle_focal,
 )
 from .tracks import Keyframe, Keyframes, Markers, Tracks
@@ -155,6 +157,11 @@ def _camera_and_mode(figure, tracks, camera, keyframes, calibrate, image_size=No
                 "at the origin, looking along +Z, +Y up)"}
         if auto.projection == "perspective":
             desc["fov_deg"] = float(auto.fov_deg)
+            X, uv = keyframe_correspondences(tracks, keyframes)
+            if posed and len(X) >= 6:  # how far they fix the focal length, placing the camera too
+                (lo, hi), bounded = keyframe_focal_interval(X, uv, camera)
+                desc["keyframe_focal"] = {"interval_px": [lo, hi], "bounded": list(bounded), "points": len(X),
+                                          "frames": len({k.frame for k in keyframes if k.points})}
         return camera, mode, desc
     if "camera" in str(mode) and keyframes is not None:
         if isinstance(camera, (list, tuple)):

@@ -62,6 +62,7 @@ __all__ = [
     "focal_profile",
     "image_size_of",
     "keyframe_correspondences",
+    "keyframe_focal_interval",
     "orthographic_from_keyframes",
     "profile_interval",
     "settle_focal",
@@ -265,6 +266,50 @@ def camera_from_keyframes(X, uv, image_size, f0: float) -> Perspective | None:
     return Perspective(K, R, t)
 
 
+def keyframe_focal_interval(X, uv, camera, *, steps: Sequence[float] = (0.05, 0.1, 0.2, 0.35, 0.5, 0.7),
+                            threshold: float = 1.92) -> tuple[tuple, tuple]:
+    """How far point keyframes fix a perspective camera's focal length when they also
+    place it (:func:`camera_from_keyframes`): the profile of their reprojection cost over
+    the focal length, rotation and position re-fitted at each value (log steps ``steps``
+    out from ``camera``'s on both sides), in units of the fit's own residual variance
+    (``RSS / (2 N - 7)`` over the N points: the keyframes' noise seen through the camera).
+    The focal length and the camera's distance trade off; few keyframes, or keyframes
+    whose points span little depth, leave a long valley. Returns ``((low, high),
+    (bounded_low, bounded_high))``: the focal lengths whose cost rises by less than
+    ``threshold`` nats (chi-square(1) / 2 at 95 %), a side unbounded when even its last
+    step stays within it."""
+    from scipy.optimize import least_squares
+
+    X, uv = np.asarray(X, float), np.asarray(uv, float)
+    c = np.asarray(camera.K[:2, 2], float)
+    f_fit = float(camera.K[0, 0])
+
+    def fit(f, p0):
+        def resid(p):
+            xc = X @ _rodrigues(p[:3]).T + p[3:6]
+            z = np.where(np.abs(xc[:, 2]) > 1e-9, xc[:, 2], 1e-9)
+            return (f * xc[:, :2] / z[:, None] + c - uv).ravel()
+
+        sol = least_squares(resid, p0, method="lm", max_nfev=400)
+        return sol.x, float(sol.fun @ sol.fun)
+
+    p_fit, rss0 = fit(f_fit, np.r_[_log_rotation(camera.R), camera.t])
+    var = max(rss0 / max(2 * len(X) - 7, 1), 1e-12)
+    ends, bounded = [], []
+    for sign in (-1.0, 1.0):
+        p, d0, c0, out = p_fit, 0.0, 0.0, False
+        for d in sorted(steps):
+            p, rss = fit(f_fit * float(np.exp(sign * d)), p)
+            cost = (rss - rss0) / (2.0 * var)
+            if cost > threshold:  # the crossing, linear in log f between the last two steps
+                d0, out = d0 + (threshold - c0) / (cost - c0) * (d - d0), True
+                break
+            d0, c0 = d, cost
+        ends.append(f_fit * float(np.exp(sign * d0)))
+        bounded.append(out)
+    return (ends[0], ends[1]), (bounded[0], bounded[1])
+
+
 def orthographic_from_keyframes(X, uv) -> Orthographic | None:
     """The orthographic camera ``u = s (R X)[:2] + c`` best projecting world points ``X``
     (N, 3) onto pixels ``uv`` (N, 2): the affine map ``u = A X + b`` by linear least
@@ -380,9 +425,20 @@ class FocalReport:
     determined: bool
     tolerance: float
     threshold: float = PROFILE_THRESHOLD
+    #: with the camera placed by point keyframes: their own profile (:func:`keyframe_focal_interval`,
+    #: ``{"interval_px", "bounded", "points", "frames"}``) when it, not the solve's, rules the focal
+    #: length undetermined (the solve holds the camera where they put it)
+    keyframes: dict | None = None
 
     def message(self) -> str:
         lo, hi = self.interval_px
+        if self.keyframes is not None:
+            k = self.keyframes
+            return (f"the focal length is NOT determined: the point keyframes ({k['points']} points on "
+                    f"{k['frames']} frames) place the camera and fix its focal length, which trades off against its "
+                    f"distance, only to {lo:.0f}-{hi:.0f} px" + ("" if all(self.bounded) else " or beyond")
+                    + f" (95 %, their reprojection profile); the fit, {self.focal_px:.0f} px, keeps the camera where "
+                    "they put it. Give a calibrated camera (--camera FILE) or point keyframes on more frames")
         costs = [c for _, c in self.profile]
         low_f = self.profile[int(np.argmin(costs))][0]
         tail = (f"; the subject's depth changes by a factor {self.depth_ratio:.2f} along the clip"
@@ -401,7 +457,8 @@ class FocalReport:
                 "profile": [[float(f), float(c)] for f, c in self.profile],
                 "interval_px": [float(v) for v in self.interval_px], "bounded": [bool(b) for b in self.bounded],
                 "depth_ratio": self.depth_ratio, "determined": self.determined, "tolerance": self.tolerance,
-                "threshold": self.threshold, "message": self.message()}
+                "threshold": self.threshold, "message": self.message(),
+                **({"keyframes": self.keyframes} if self.keyframes is not None else {})}
 
 
 def stretch_depth(Q, camera, k: float) -> np.ndarray:
@@ -579,6 +636,11 @@ def settle_focal(problem, res, auto: dict | None, *, options=None, rounds: int =
         res = solve(problem, Q, options, active=problem.active, g0=g)
         solves = _profile_solves(problem, res, steps, options)
     rep = _report(problem, res, solves, threshold, tolerance)
+    kf = auto.get("keyframe_focal")
+    if kf is not None and rep.determined and not (all(kf["bounded"]) and kf["interval_px"][0] >= rep.focal_px / (
+            1.0 + tolerance) and kf["interval_px"][1] <= rep.focal_px * (1.0 + tolerance)):
+        rep = dataclasses.replace(rep, interval_px=tuple(kf["interval_px"]), bounded=tuple(kf["bounded"]),
+                                  determined=False, keyframes=kf)
     if not rep.determined:
         import warnings
 
