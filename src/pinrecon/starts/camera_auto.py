@@ -426,12 +426,15 @@ class FocalReport:
     tolerance: float
     threshold: float = PROFILE_THRESHOLD
     #: with the camera placed by point keyframes: their own profile (:func:`keyframe_focal_interval`,
-    #: ``{"interval_px", "bounded", "points", "frames"}``) when it, not the solve's, rules the focal
-    #: length undetermined (the solve holds the camera where they put it)
+    #: ``{"interval_px", "bounded", "points", "frames"}``; the solve's holds the camera where they put
+    #: it): the interval is then the envelope of both, and not determined when theirs is too wide
     keyframes: dict | None = None
 
     def message(self) -> str:
         lo, hi = self.interval_px
+        if self.keyframes is not None and self.determined:
+            return (f"focal length {self.focal_px:.0f} px (started at {self.start_px:.0f} px), {lo:.0f} to {hi:.0f} px "
+                    "at 95 % (the MAP cost profile, and the point keyframes' own, which place the camera)")
         if self.keyframes is not None:
             k = self.keyframes
             return (f"the focal length is NOT determined: the point keyframes ({k['points']} points on "
@@ -637,10 +640,12 @@ def settle_focal(problem, res, auto: dict | None, *, options=None, rounds: int =
         solves = _profile_solves(problem, res, steps, options)
     rep = _report(problem, res, solves, threshold, tolerance)
     kf = auto.get("keyframe_focal")
-    if kf is not None and rep.determined and not (all(kf["bounded"]) and kf["interval_px"][0] >= rep.focal_px / (
-            1.0 + tolerance) and kf["interval_px"][1] <= rep.focal_px * (1.0 + tolerance)):
-        rep = dataclasses.replace(rep, interval_px=tuple(kf["interval_px"]), bounded=tuple(kf["bounded"]),
-                                  determined=False, keyframes=kf)
+    if kf is not None and rep.determined:  # the camera's placement by the keyframes is uncertain too
+        (lo, hi), (klo, khi) = rep.interval_px, kf["interval_px"]
+        wide = not (all(kf["bounded"]) and klo >= rep.focal_px / (1.0 + tolerance) and khi <= rep.focal_px * (1.0 + tolerance))
+        rep = dataclasses.replace(rep, interval_px=(klo, khi) if wide else (min(lo, klo), max(hi, khi)),
+                                  bounded=tuple(kf["bounded"]) if wide else rep.bounded, determined=not wide,
+                                  keyframes=kf)
     if not rep.determined:
         import warnings
 
