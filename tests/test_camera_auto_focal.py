@@ -157,3 +157,17 @@ def test_a_camera_placed_by_two_keyframes_says_its_focal_length_is_not_determine
     assert rep["determined"] is True and rep["keyframes"]["frames"] == 10
     assert rep["keyframes"]["interval_px"][0] >= lo and rep["keyframes"]["interval_px"][1] <= hi
     assert lo <= F_TRUE <= hi and "point keyframes' own" in rep["message"]
+
+
+def test_a_focal_length_resting_on_an_unfamiliar_prior_is_doubted():
+    from pinrecon.starts.camera_auto import doubt_focal
+
+    rep = {"focal_px": 960.0, "interval_px": [927.0, 987.0], "determined": True, "message": "focal length 960 px"}
+    auto = {"projection": "perspective", "focal": rep}
+    assert doubt_focal(auto, 0.3) is auto and doubt_focal(None, 1.0) is None
+    assert doubt_focal({**auto, "focal": {**rep, "keyframes": {"frames": 10}}}, 1.0)["focal"]["determined"] is True
+    assert doubt_focal({**auto, "focal": {**rep, "determined": False}}, 1.0)["focal"]["message"] == rep["message"]
+    with pytest.warns(FocalLengthWarning, match="80 % of the frames"):
+        out = doubt_focal(auto, 0.8)
+    assert out["focal"]["determined"] is False and out["focal"]["unfamiliar_share"] == 0.8
+    assert rep["determined"] is True  # the input is not changed

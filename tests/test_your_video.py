@@ -70,3 +70,20 @@ def test_against_pose2sims_four_camera_triangulation(your_video):
     pa = pa_mpjpe_mm(P, G)
     assert pa < 160.0, pa
     assert float(np.nanmean(res.reprojection_error_px)) < 10.0
+
+
+def test_the_focal_length_the_prior_gives_is_not_claimed(your_video):
+    """Every frame's pose is unlike the prior's clips, and one view owes its focal length to
+    the prior: the fit (960 px, its cost profile 927-987 px) is far from the 1681 px of
+    Pose2Sim's own calibration of this camera, so the report must not call it determined."""
+    from pinrecon.io.calibration import load_cameras
+
+    res = pr.load_result(your_video / "result.npz")
+    rep = res.calibration["camera_auto"]["focal"]
+    cams = load_cameras(REPO / "tests" / "data" / "calibration" / "pose2sim" / "Calib_qualisys.toml")
+    assert cams[0].name == "cam_01"  # the trial's camera 1
+    true_f = float(cams[0].camera.K[0, 0])
+    lo, hi = rep["interval_px"]
+    assert not lo <= true_f <= hi  # the profile's interval misses the truth ...
+    assert rep["determined"] is False and rep["unfamiliar_share"] > 0.5  # ... and the report says so
+    assert "NOT determined" in res.summary() and "unlike its clips" in rep["message"]

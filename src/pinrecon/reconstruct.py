@@ -41,6 +41,7 @@ from .starts.camera_auto import (
     AutoCamera,
     auto_camera,
     camera_scale_from_keyframes,
+    doubt_focal,
     image_size_of,
     keyframe_correspondences,
     keyframe_focal_interval,
@@ -446,6 +447,9 @@ def _package(problem: ReconstructionProblem, res: SolveResult, auto: dict | None
         observed[meas.frames] = True
     with np.errstate(invalid="ignore", divide="ignore"):
         err = np.where(err_n > 0, err_sum / np.maximum(err_n, 1), np.nan)
+    unfamiliar = unfamiliar_poses(problem, Q)  # where the pose prior extrapolates
+    if unfamiliar is not None:  # ... and with it an auto camera's focal length, which one view owes to the prior
+        auto = doubt_focal(auto, unfamiliar.share)
     result = Result(
         figure, Q, np.arange(T) / problem.fps, problem.fps, P, err, res, observed,
         cameras=problem.cameras_at(g), camera_names=problem.camera_names,
@@ -456,7 +460,6 @@ def _package(problem: ReconstructionProblem, res: SolveResult, auto: dict | None
     )
     for report in getattr(problem, "reports", {}).values():  # the hypotheses start, the fault stage
         result.extras.update(report.to_extras())
-    unfamiliar = unfamiliar_poses(problem, Q)  # where the pose prior extrapolates
     if unfamiliar is not None:
         result.extras.update(unfamiliar.to_extras())
     return result

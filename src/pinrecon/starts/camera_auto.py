@@ -59,6 +59,7 @@ __all__ = [
     "camera_from_keyframes",
     "camera_scale_from_keyframes",
     "check_focal",
+    "doubt_focal",
     "focal_profile",
     "image_size_of",
     "keyframe_correspondences",
@@ -601,6 +602,30 @@ def profile_interval(points, f_fit: float, *, threshold: float = PROFILE_THRESHO
         return float(f_arr[best] * np.exp(roots[i]))
 
     return (cross(0), cross(1)), (True, True), True
+
+
+def doubt_focal(auto: dict | None, unfamiliar_share: float, *, limit: float = 0.5) -> dict | None:
+    """The auto camera's description ``auto`` with its focal report marked NOT determined
+    (and a :class:`FocalLengthWarning`) when more than ``limit`` of the frames' poses are
+    unlike the pose prior's clips (``unfamiliar_share``, :mod:`pinrecon.unfamiliar`): one
+    view fixes the focal length only through the prior (the valley of its cost profile is
+    the prior's), which there extrapolates. Pose2Sim's real balancing trial, every frame
+    unlike the prior, fitted 960 px "927-987 at 95 %" against its calibration's 1681 px.
+    Unchanged when the focal length was not determined anyway, or point keyframes fixed it."""
+    focal = (auto or {}).get("focal")
+    if not isinstance(focal, dict) or not focal.get("determined") or focal.get("keyframes") or \
+            not unfamiliar_share > limit:
+        return auto
+    lo, hi = focal["interval_px"]
+    msg = (f"the focal length is NOT determined: one view fixes it only through the pose prior, and "
+           f"{100 * unfamiliar_share:.0f} % of the frames' poses are unlike its clips; fitted {focal['focal_px']:.0f} px, "
+           f"which the MAP cost profile put at {lo:.0f}-{hi:.0f} px (95 %) taking the prior as right. Give a calibrated "
+           "camera (--camera FILE) or 3D keyframes for a metric focal length")
+    import warnings
+
+    warnings.warn(msg, FocalLengthWarning, stacklevel=3)
+    return {**auto, "focal": {**focal, "determined": False, "message": msg,
+                              "unfamiliar_share": float(unfamiliar_share)}}
 
 
 def check_focal(problem, res, auto: dict | None, **kw) -> dict | None:
