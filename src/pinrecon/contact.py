@@ -614,8 +614,7 @@ def _free_globals(problem, g) -> np.ndarray:
     """The global unknowns the feet stage may move: the proportions, not a camera's focal
     length or scale (settled over the whole clip before it, and reported as such)."""
     props = getattr(problem, "proportions", None)
-    n_p = len(props.names) if props is not None else 0
-    return np.arange(len(g)) < n_p
+    return np.arange(len(g)) < (props.n if props is not None else 0)
 
 
 def solve_on_the_floor(problem, res, floor="auto", contact="auto", *, settings: ContactSettings | None = None,

@@ -115,7 +115,7 @@ def default_feet(figure, tracks, keypoints=None) -> bool:
     if (getattr(figure, "meta", None) or {}).get("generic") != "human":
         return False
     names = {n for t in (tracks if isinstance(tracks, (list, tuple)) else [tracks])
-             for n, seen in zip(t.names, np.isfinite(np.asarray(t.points, float)).all(axis=-1).any(axis=0)) if seen}
+             for n, seen in zip(t.names, t.observed.any(axis=0)) if seen}
     if keypoints is not None:
         names &= set(keypoints)
     return bool(foot_keypoints(figure, sorted(names & set(figure.keypoint_names))))

@@ -197,6 +197,13 @@ def camera_scale_from_keyframes(camera, tracks, keyframes, min_points: int = 6):
     return camera
 
 
+#: a cost rise (nats) that rules a focal length out: chi-square(1) / 2 at 95 %
+PROFILE_THRESHOLD = 1.92
+
+#: log focal length steps of the profile, outwards from the fitted value (0.1: about 10 %)
+PROFILE_STEPS = (0.1, 0.3, 0.6)
+
+
 def _rodrigues(r) -> np.ndarray:
     th = float(np.linalg.norm(r))
     if th < 1e-12:
@@ -210,6 +217,14 @@ def _log_rotation(R) -> np.ndarray:
     from scipy.spatial.transform import Rotation
 
     return Rotation.from_matrix(R).as_rotvec()
+
+
+def _reprojection(X, uv, c, pose, f) -> np.ndarray:
+    """Pixel residuals of world points ``X`` against ``uv`` through a pinhole camera with
+    principal point ``c``, focal length ``f`` and ``pose`` = (rotation vector, translation)."""
+    xc = X @ _rodrigues(pose[:3]).T + pose[3:6]
+    z = np.where(np.abs(xc[:, 2]) > 1e-9, xc[:, 2], 1e-9)
+    return (f * xc[:, :2] / z[:, None] + c - uv).ravel()
 
 
 def camera_from_keyframes(X, uv, image_size, f0: float) -> Perspective | None:
@@ -254,21 +269,15 @@ def camera_from_keyframes(X, uv, image_size, f0: float) -> Perspective | None:
     if np.mean(x_cam[:, 2] > 0) < 0.5:
         return None
 
-    def resid(p):
-        Rp = _rodrigues(p[:3])
-        xc = X @ Rp.T + p[3:6]
-        z = np.where(np.abs(xc[:, 2]) > 1e-9, xc[:, 2], 1e-9)
-        return (np.exp(p[6]) * xc[:, :2] / z[:, None] + c - uv).ravel()
-
     p0 = np.r_[_log_rotation(R), t, np.log(f)]
-    sol = least_squares(resid, p0, method="lm", max_nfev=200)
+    sol = least_squares(lambda p: _reprojection(X, uv, c, p[:6], np.exp(p[6])), p0, method="lm", max_nfev=200)
     R, t, f = _rodrigues(sol.x[:3]), sol.x[3:6], float(np.exp(sol.x[6]))
     K = np.array([[f, 0.0, c[0]], [0.0, f, c[1]], [0.0, 0.0, 1.0]])
     return Perspective(K, R, t)
 
 
 def keyframe_focal_interval(X, uv, camera, *, steps: Sequence[float] = (0.05, 0.1, 0.2, 0.35, 0.5, 0.7),
-                            threshold: float = 1.92) -> tuple[tuple, tuple]:
+                            threshold: float = PROFILE_THRESHOLD) -> tuple[tuple, tuple]:
     """How far point keyframes fix a perspective camera's focal length when they also
     place it (:func:`camera_from_keyframes`): the profile of their reprojection cost over
     the focal length, rotation and position re-fitted at each value (log steps ``steps``
@@ -286,12 +295,7 @@ def keyframe_focal_interval(X, uv, camera, *, steps: Sequence[float] = (0.05, 0.
     f_fit = float(camera.K[0, 0])
 
     def fit(f, p0):
-        def resid(p):
-            xc = X @ _rodrigues(p[:3]).T + p[3:6]
-            z = np.where(np.abs(xc[:, 2]) > 1e-9, xc[:, 2], 1e-9)
-            return (f * xc[:, :2] / z[:, None] + c - uv).ravel()
-
-        sol = least_squares(resid, p0, method="lm", max_nfev=400)
+        sol = least_squares(lambda p: _reprojection(X, uv, c, p, f), p0, method="lm", max_nfev=400)
         return sol.x, float(sol.fun @ sol.fun)
 
     p_fit, rss0 = fit(f_fit, np.r_[_log_rotation(camera.R), camera.t])
@@ -393,13 +397,6 @@ def auto_camera(tracks, figure=None, image_size=None, projection: str = "perspec
 # ----------------------------------------------------------------------------- how well the data fix f
 class FocalLengthWarning(UserWarning):
     """The tracks do not determine the auto camera's focal length (see :func:`focal_profile`)."""
-
-
-#: a cost rise (nats) that rules a focal length out: chi-square(1) / 2 at 95 %
-PROFILE_THRESHOLD = 1.92
-
-#: log focal length steps of the profile, outwards from the fitted value (0.1: about 10 %)
-PROFILE_STEPS = (0.1, 0.3, 0.6)
 
 
 @dataclass
