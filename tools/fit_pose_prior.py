@@ -91,6 +91,28 @@ def clip_channels(path, fps_out=30.0):
     return m.figure, m.q[::step], rest_directions(m.figure)
 
 
+def shrunk(C, shrink):
+    """``C`` shrunk towards its diagonal by ``shrink``, plus 1e-4 rad^2 on it."""
+    return (1.0 - shrink) * C + shrink * np.diag(np.diag(C)) + 1e-4 * np.eye(len(C))
+
+
+def rounded(C):
+    return [[round(float(v), 7) for v in row] for row in C]
+
+
+def mixture(X, k, shrink, seed=0):
+    """({"weights", "means", "covariances"}, means, covariances): a mixture of ``k`` full
+    Gaussians fitted to ``X`` (frames, joints) by scikit-learn, each covariance shrunk."""
+    try:
+        from sklearn.mixture import GaussianMixture
+    except ImportError:
+        raise SystemExit("--components above 1 needs scikit-learn: pip install scikit-learn") from None
+    g = GaussianMixture(k, covariance_type="full", reg_covar=1e-4, n_init=3, random_state=seed).fit(X)
+    covs = [shrunk(c, shrink) for c in g.covariances_]
+    return ({"weights": [round(float(w), 6) for w in g.weights_], "means": [[round(float(v), 6) for v in mu] for mu in g.means_],
+             "covariances": [rounded(c) for c in covs]}, list(g.means_), covs)
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("bvh", nargs="+")
@@ -106,6 +128,11 @@ def main(argv=None):
                     help="weight of the diagonal in the covariance (0: the sample covariance, 1: independent joints)")
     ap.add_argument("--max-frames", type=int, default=150,
                     help="frames kept per clip, evenly spaced, so that every clip weighs about the same")
+    ap.add_argument("--components", type=int, default=1,
+                    help="Gaussians of the correlated joints: 1, one Gaussian; more, a mixture fitted by "
+                    "scikit-learn's GaussianMixture (full covariances, each shrunk as --shrink says), scored "
+                    "per frame by its least-cost component (pinrecon.rows.posture.PosePrior)")
+    ap.add_argument("--seed", type=int, default=0, help="the mixture fit's random state")
     a = ap.parse_args(argv)
     bvh_mode = a.figure == "bvh"
     a.out = a.out or f"models/priors/{'cmu_bvh_pose' if bvh_mode else 'human_pose'}.json"
@@ -137,17 +164,19 @@ def main(argv=None):
             if x.std() > a.min_std:
                 moving.append(jid)
     X = Q[:, [m.idx_qs[j] for j in moving]]
-    C = np.cov(X, rowvar=False, bias=True)
-    C = (1.0 - a.shrink) * C + a.shrink * np.diag(np.diag(C)) + 1e-4 * np.eye(len(moving))
-    # how far the clips' own frames lie from the mean (Mahalanobis distance, standard
-    # deviations): the yardstick of a pose the prior does not know (pinrecon.unfamiliar)
-    D = X - X.mean(axis=0)
-    dist = np.sqrt(np.einsum("ij,ij->i", D @ np.linalg.inv(C), D))
+    C = shrunk(np.cov(X, rowvar=False, bias=True), a.shrink)
+    corr = {"joints": [m.names[j] for j in moving], "shrink": a.shrink, "covariance": rounded(C)}
+    means, covs = [X.mean(axis=0)], [C]
+    if a.components > 1:
+        corr["mixture"], means, covs = mixture(X, a.components, a.shrink, a.seed)
+    # how far the clips' own frames lie from the mean (of a mixture: the nearest component's;
+    # Mahalanobis distance, standard deviations): the yardstick of a pose the prior does not
+    # know (pinrecon.unfamiliar)
+    dist = np.min([np.sqrt(np.einsum("ij,ij->i", (X - mu) @ np.linalg.inv(c), X - mu)) for mu, c in zip(means, covs)],
+                  axis=0)
+    corr["distance_quantiles"] = {str(p): round(float(np.percentile(dist, p)), 3) for p in (50, 90, 99, 100)}
     out = {"figure": "BVH, CMU motionbuilder layout" if bvh_mode else "Figure.human()", "units": "rad", "joints": joints,
-           "correlated": {"joints": [m.names[j] for j in moving], "shrink": a.shrink,
-                          "covariance": [[round(float(v), 7) for v in row] for row in C],
-                          "distance_quantiles": {str(p): round(float(np.percentile(dist, p)), 3)
-                                                 for p in (50, 90, 99, 100)}},
+           "correlated": corr,
            "clips": clips, "frames": len(Q), "min_std_rad": a.min_std, "skipped": a.skip,
            "made_by": "tools/fit_pose_prior.py" + (" --figure bvh" if bvh_mode else "")}
     if bvh_mode:

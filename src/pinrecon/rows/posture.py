@@ -75,6 +75,13 @@ class PosePrior(Posture):
       pull, but one that still prefers the unlike pose nearer the clips';
     * ``k=None``: always quadratic.
 
+    A mixture of Gaussians (``mixture``: weights, means and covariances of the ``qcorr``
+    joints, ``tools/fit_pose_prior.py --components``) holds each frame by its least-cost
+    component, ``rho(m_k) + c_k`` with ``c_k = -log w_k + 0.5 log det cov_k`` (less the least
+    of them): the max-mixture of SMPLify (Bogo et al. 2016), which keeps a Gauss-Newton row
+    per frame. The component's constant is one more row (its Jacobian zero), so that
+    ``0.5 |r|^2`` is the frame's cost; the chosen component may change between iterations.
+
     Robust losses are reweighted rows (as the measurement's): the rows are scaled by
     ``sqrt(rho'(m) / m)`` and the block reports the true cost. The rows of every correlated
     joint are written (a joint that is not ``active`` enters at its current value, i.e. the
@@ -84,7 +91,7 @@ class PosePrior(Posture):
     LOSSES = ("huber", "cauchy")
 
     def __init__(self, figure, n_frames, q_ref, sigma, qcorr, cov, scale, active=None, k=None, loss="huber",
-                 quantiles=None):
+                 quantiles=None, mixture=None):
         super().__init__(figure, n_frames, q_ref, sigma, active)
         #: percentiles of the prior's own clips' distances (:meth:`distances`), e.g. ``{"99": 9.0}``
         self.quantiles = dict(quantiles or {})
@@ -93,10 +100,22 @@ class PosePrior(Posture):
         self.k = None if k is None else float(k)
         self.loss = loss
         self.qcorr = np.asarray(qcorr, int)
-        self.mean_corr = np.asarray(q_ref, float)[self.qcorr]
-        L = np.linalg.cholesky(np.linalg.inv(np.asarray(cov, float)))  # cov^-1 = L L^T
-        self.A = L.T / float(scale)
         self.scale = float(scale)
+        if mixture is None:  # one Gaussian: the joints' mean and covariance
+            weights, means, covs = [1.0], [np.asarray(q_ref, float)[self.qcorr]], [cov]
+        else:
+            weights, means, covs = mixture
+        #: (K, d) the components' means, (K, d, d) their whitening ``A_k`` (``A_k^T A_k = cov_k^-1 /
+        #: scale^2``), (K,) their constants ``-log w_k + 0.5 log det cov_k``, least 0
+        self.means = np.asarray(means, float).reshape(len(weights), len(self.qcorr))
+        self.As, logdet = [], []
+        for c in covs:
+            c = np.asarray(c, float)
+            self.As.append(np.linalg.cholesky(np.linalg.inv(c)).T / self.scale)  # cov^-1 = L L^T
+            logdet.append(np.linalg.slogdet(c)[1])
+        self.As = np.stack(self.As)
+        const = -np.log(np.asarray(weights, float)) + 0.5 * np.asarray(logdet)
+        self.consts = const - const.min()
         pos = {int(q): k for k, q in enumerate(self.qidx)}
         corr = set(self.qcorr.tolist())
         self.diag = np.array([k for k, q in enumerate(self.qidx) if int(q) not in corr], int)
@@ -105,30 +124,43 @@ class PosePrior(Posture):
         self._corr_col = np.array([pos[int(self.qcorr[i])] for i in self._corr_in], int)
 
     def _residuals(self, Q):
-        """(rd, rc): the diagonal rows (joints outside ``qcorr``) and the Mahalanobis rows."""
+        """(rd, rc, const): the diagonal rows (joints outside ``qcorr``), the Mahalanobis rows
+        of each frame's component (the one of least cost) and that component's constant."""
         rd = (Q[:, self.qidx[self.diag]] - self.q_ref[self.diag]) * self.inv_sigma[self.diag]
-        return rd, (Q[:, self.qcorr] - self.mean_corr) @ self.A.T
+        z = Q[:, None, self.qcorr] - self.means  # (T, K, d)
+        rc = np.einsum("kij,tkj->tki", self.As, z)
+        if len(self.means) == 1:
+            return rd, rc[:, 0], np.zeros(len(Q)), np.zeros(len(Q), int)
+        m = np.linalg.norm(rc, axis=2)
+        cost = (0.5 * m**2 if self.k is None else self._robust(m)[0]) + self.consts
+        best = np.argmin(cost, axis=1)
+        return rd, rc[np.arange(len(Q)), best], self.consts[best], best
 
     def evaluate(self, state: State, jacobian: bool = True) -> RowBlock:
-        N, c, nd = len(self.frames), len(self.cols), len(self.diag)
-        rd, rc = self._residuals(state.Q)
+        N, c, nd, dc = len(self.frames), len(self.cols), len(self.diag), len(self.qcorr)
+        rd, rc, const, best = self._residuals(state.Q)
+        mixed = len(self.means) > 1
         cv = None
         if self.k is not None:  # the robust loss on the frame's distance m, reweighted rows
             rho, sw = self._robust(np.linalg.norm(rc, axis=1))
-            cv = float(rho.sum() + 0.5 * (rd**2).sum())
+            cv = float(rho.sum() + const.sum() + 0.5 * (rd**2).sum())
             rc = rc * sw[:, None]
-        r = np.concatenate([rd, rc], axis=1)
+        parts = [rd, rc] + ([np.sqrt(2.0 * const)[:, None]] if mixed else [])  # the component's constant
+        r = np.concatenate(parts, axis=1)
         J = None
         if jacobian:
-            Jf = np.zeros((nd + len(self.qcorr), c))
-            Jf[np.arange(nd), self.diag] = self.inv_sigma[self.diag]
-            Jf[np.ix_(nd + np.arange(len(self.qcorr)), self._corr_col)] = self.A[:, self._corr_in]
-            if self.k is None:
-                J = np.broadcast_to(Jf, (N, 1) + Jf.shape)
+            nr = nd + dc + int(mixed)
+            Jf = np.zeros((len(self.means), nr, c))
+            Jf[:, np.arange(nd), self.diag] = self.inv_sigma[self.diag]
+            for k in range(len(self.means)):
+                Jf[k][np.ix_(nd + np.arange(dc), self._corr_col)] = self.As[k][:, self._corr_in]
+            if self.k is None and not mixed:
+                J = np.broadcast_to(Jf[0], (N, 1) + Jf.shape[1:])
             else:
-                w_rows = np.ones((N, len(Jf)))
-                w_rows[:, nd:] = sw[:, None]
-                J = (w_rows[:, :, None] * Jf)[:, None]
+                w_rows = np.ones((N, nr))
+                if self.k is not None:
+                    w_rows[:, nd:nd + dc] = sw[:, None]
+                J = (w_rows[:, :, None] * Jf[best])[:, None]
         return RowBlock(self.frames[:, None], r, J, self.cols, self.name, cost_value=cv)
 
     def _robust(self, m):
@@ -141,17 +173,20 @@ class PosePrior(Posture):
         return np.where(out, 0.5 * m**2, k * m - 0.5 * k**2), np.sqrt(np.where(out, 1.0, k / np.maximum(m, 1e-300)))
 
     def distances(self, Q) -> np.ndarray:
-        """(T,) each frame's Mahalanobis distance of the correlated joints from the mean,
-        in standard deviations of the prior's clips (not in units of ``scale``)."""
-        return self.scale * np.linalg.norm(self._residuals(np.asarray(Q, float))[1], axis=1)
+        """(T,) each frame's Mahalanobis distance of the correlated joints from the mean (of
+        a mixture: from the nearest component's), in standard deviations of the prior's clips
+        (not in units of ``scale``)."""
+        z = np.asarray(Q, float)[:, None, self.qcorr] - self.means
+        return self.scale * np.linalg.norm(np.einsum("kij,tkj->tki", self.As, z), axis=2).min(axis=1)
 
     def frame_costs(self, Q) -> np.ndarray:
         """(T,) each frame's cost of trajectory ``Q`` (T, nq) under this prior (the robust
-        loss itself, not the reweighted rows' 0.5 |r|^2)."""
-        rd, rc = self._residuals(np.asarray(Q, float))
+        loss itself, not the reweighted rows' 0.5 |r|^2; of a mixture, its least-cost
+        component's with that component's constant)."""
+        rd, rc, const, _ = self._residuals(np.asarray(Q, float))
         m = np.linalg.norm(rc, axis=1)
         rho = 0.5 * m**2 if self.k is None else self._robust(m)[0]
-        return rho + 0.5 * (rd**2).sum(axis=1)
+        return rho + const + 0.5 * (rd**2).sum(axis=1)
 
 
 def pose_prior(figure, rest: np.ndarray, name: str = "human_pose") -> tuple[np.ndarray, np.ndarray]:
@@ -196,8 +231,12 @@ def _pose_prior_file(name: str) -> dict:
     try:
         data = json.loads(path.read_text())
         corr = data["correlated"]
+        mix = corr.get("mixture")
+        if mix is not None:
+            mix = (np.array(mix["weights"], float), np.array(mix["means"], float), np.array(mix["covariances"], float))
         return {"joints": {k: (float(v[0]), float(v[1])) for k, v in data["joints"].items()},
                 "correlated": (list(corr["joints"]), np.array(corr["covariance"], float)),
+                "mixture": mix,
                 "distances": {k: float(v) for k, v in corr.get("distance_quantiles", {}).items()},
                 "rest_directions": {k: np.asarray(v, float) for k, v in data.get("rest_directions", {}).items()},
                 "figure": str(data.get("figure", ""))}
@@ -278,7 +317,7 @@ def posture_row(figure, n_frames: int, weights, active=None) -> Posture | None:
         qcorr, cov = pose_prior_covariance(figure, name)
         s = weights.pose_prior
         return PosePrior(figure, n_frames, ref, sigma * s, qcorr, cov, s, active, weights.pose_prior_k,
-                         weights.pose_prior_loss, pose_prior_distances(name))
+                         weights.pose_prior_loss, pose_prior_distances(name), _pose_prior_file(name)["mixture"])
     if weights.sigma_posture is None:
         return None
     return Posture(figure, n_frames, rest_pose(figure), weights.sigma_posture, active)
