@@ -65,7 +65,7 @@ def _prior_cost_by_hand(table, fig, Q, scale, huber=None, cauchy=False):
     """Per frame: 0.5 m^2 (Huber beyond ``huber``, or Cauchy at scale ``huber``), m the
     correlated joints' Mahalanobis distance / scale, plus :func:`_diag_cost`; of a mixture
     (``"mixture"`` in the file), the least over its components of that plus the component's
-    ``-log w + 0.5 log det C`` (less the least of those)."""
+    ``(-log w + 0.5 log det C) / scale^2`` (less the least of those)."""
     dist, const = _components_by_hand(table, fig, Q, scale)
     if huber is None:
         cost = 0.5 * dist**2
@@ -92,7 +92,7 @@ def _components_by_hand(table, fig, Q, scale):
         D, C = X - np.array(mu), np.array(C)
         dist.append(np.sqrt(np.einsum("ti,ti->t", D, np.linalg.solve(C, D.T).T)) / scale)
         const.append(-np.log(w) + 0.5 * np.log(np.linalg.det(C)))
-    return np.stack(dist, 1), np.array(const) - min(const)
+    return np.stack(dist, 1), (np.array(const) - min(const)) / scale**2  # the density tempered by scale^2
 
 
 def _diag_cost(table, fig, Q, scale):
