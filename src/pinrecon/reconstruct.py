@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import warnings
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -35,6 +35,7 @@ from .problem import (
 )
 from .result import Result, load_result
 from .rows import Measurement2D
+from .rows.posture import prior_for
 from .solver import SolveResult, SolverOptions, globals_of, solve
 from .starts import available_starts, get_start, initial_trajectory
 from .starts.camera_auto import (
@@ -48,7 +49,7 @@ from .starts.camera_auto import (
     settle_focal,
 )
 from .tracks import Keyframe, Keyframes, Markers, Tracks
-from .unfamiliar import unfamiliar_poses
+from .unfamiliar import BROADER_PRIOR, broader_prior, unfamiliar_poses
 from .windowed import solve_windowed, windowed_length
 
 __all__ = [
@@ -242,7 +243,12 @@ def reconstruct(
     keyframes : optional :class:`~pinrecon.tracks.Keyframes` (frames index the tracks).
     fps_out : reconstruction rate, an integer multiple of ``tracks.fps`` (super-sampled
         frames have no observation); default ``tracks.fps``.
-    weights : :class:`~pinrecon.problem.Weights`.
+    weights : :class:`~pinrecon.problem.Weights`. With the generic human's pose prior chosen by
+        default (``pose_prior_model="auto"``) and a cold start, a clip whose poses that prior
+        does not know (more than half of its frames, :mod:`pinrecon.unfamiliar`) is solved
+        again from its start with the broader ``human_pose_mixture``
+        (:func:`pinrecon.unfamiliar.broader_prior`; the first solve's warnings are dropped);
+        the result says so (``extras["prior_model"]``, its summary).
     init : a (T_out, nq) start (a warm start), or the name of a start; ``"default"`` is
         the rest-pose start. Default: the keyframe start when there are keyframes, else
         the rest-pose start (the rest pose placed on the tracks and rigidly fitted).
@@ -295,6 +301,8 @@ def reconstruct(
     ``result.cameras`` the fitted cameras and ``result.calibration`` the factors, the
     fitted lengths and focal lengths.
     """
+    if _may_broaden(figure, weights, init):  # the default prior named, then maybe a broader one
+        return _broader(dict(locals()), prior_for(figure, "auto"))
     off = floor is False or isinstance(floor, str) and floor.strip().lower() == "none"
     if off and contact not in (None, False):
         raise InputError("contacts need a floor: drop floor='none' or the contacts", field="contact")
@@ -336,6 +344,38 @@ def reconstruct(
     result = _package(problem, res, auto)
     result.extras.update(feet.to_extras())
     return result
+
+
+def _may_broaden(figure, weights, init) -> bool:
+    """Whether a solve may be run again with a broader pose prior (:func:`pinrecon.unfamiliar.
+    broader_prior`): the figure's prior chosen by default and one broader exists, and a cold
+    start (``init`` a start's name or none: a warm start, such as the workbench's, keeps its
+    prior)."""
+    w = weights or Weights()
+    return (w.pose_prior is not None and w.pose_prior_model == "auto" and (init is None or isinstance(init, str))
+            and prior_for(figure, "auto") in BROADER_PRIOR)
+
+
+def _broader(args: dict, default: str) -> Result:
+    """The solve with the ``default`` prior named; when it did not know most of the clip's
+    poses, the clip solved again from its start with the broader one (the first solve's
+    warnings dropped), its result saying so: ``extras["prior_model"]`` and
+    ``extras["prior_default_unfamiliar"]`` (the share of frames the default did not know), and
+    its summary."""
+    w = args["weights"] or Weights()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        result = reconstruct(**{**args, "weights": replace(w, pose_prior_model=default)})
+    switch = broader_prior(default, "auto", result.extras)
+    if switch is None:
+        for c in caught:
+            warnings.warn_explicit(c.message, c.category, c.filename, c.lineno, source=c.source)
+        return result
+    name, share = switch
+    again = reconstruct(**{**args, "weights": replace(w, pose_prior_model=name)})
+    again.extras["prior_model"] = np.array(name)
+    again.extras["prior_default_unfamiliar"] = np.float64(share)
+    return again
 
 
 def reconstruct_markers(

@@ -146,6 +146,10 @@ class Result:
                              f"{(b - 1) / self.fps:.2f} s), gap {gap:.1f}")
             if len(unc) > limit:
                 lines.append(f"  ... and {len(unc) - limit} more")
+        if "prior_default_unfamiliar" in x:
+            lines.append(f"pose prior: {str(x['prior_model'])} (the default did not know "
+                         f"{100 * float(x['prior_default_unfamiliar']):.0f} % of the frames' poses: solved again "
+                         "with this broader one; pinrecon.unfamiliar.broader_prior)")
         d, lim, sp = unfamiliar_frames(x)
         if len(sp):
             n = int(np.sum(d > lim))

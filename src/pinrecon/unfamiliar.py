@@ -21,6 +21,13 @@ of Pose2Sim's real balancing trial.
 carries ``prior_distance`` (per frame), ``prior_distance_limit`` and
 ``prior_unfamiliar_spans`` ((n, 2) [start, stop) reconstruction frames), and the summary
 names the spans.
+
+When more than half of a clip's frames are unfamiliar and the prior was the default's, the
+clip is solved again with a broader one (:func:`broader_prior`: the generic human's single
+Gaussian -> its mixture of 8 Gaussians over 57 clips, ``models/priors/README.md``), and the
+result says so (``prior_model``, ``prior_default_unfamiliar``). On bench_real's dance the
+mixture takes first-and-last-keyframe PA-MPJPE from 113 to about 55 mm; on Pose2Sim's real
+balancing trial from 141 to 90 mm (bench/README.md).
 """
 
 from __future__ import annotations
@@ -31,7 +38,15 @@ import numpy as np
 
 from .rows.posture import PosePrior
 
-__all__ = ["UnfamiliarPoses", "unfamiliar_poses"]
+__all__ = ["BROADER_PRIOR", "SWITCH_SHARE", "UnfamiliarPoses", "broader_prior", "unfamiliar_poses"]
+
+#: the broader prior a clip is solved again with when its default prior does not know most of
+#: its poses: the generic human's single Gaussian (walking, running, jumping, basketball; sharp
+#: on gait) -> its mixture of 8 Gaussians over 57 clips (``models/priors/README.md``)
+BROADER_PRIOR = {"human_pose": "human_pose_mixture"}
+#: the share of a clip's frames beyond the default prior's limit past which it is solved again
+#: with the broader prior (the share that also doubts an auto camera's focal length)
+SWITCH_SHARE = 0.5
 
 
 @dataclass
@@ -72,3 +87,16 @@ def unfamiliar_poses(problem, Q, *, quantile: str = "99", merge_s: float = 0.2) 
         else:
             spans.append((f, f + 1))
     return UnfamiliarPoses(d, float(limit), spans)
+
+
+def broader_prior(used: str | None, model: str, extras: dict) -> tuple[str, float] | None:
+    """``(name, share)``: the broader prior (:data:`BROADER_PRIOR`) to solve a clip again with,
+    when its pose prior was chosen by default (``model`` ``"auto"``), ``used`` has a broader
+    one, and more than :data:`SWITCH_SHARE` of the frames of the result (``extras``, with
+    :meth:`UnfamiliarPoses.to_extras`) lie beyond its limit; else None. The bundled dance
+    (bench_real, 05_11) is 79-90 % unfamiliar under the default and the walk and the run 0 %."""
+    if model != "auto" or used not in BROADER_PRIOR or "prior_distance" not in extras:
+        return None
+    d = np.asarray(extras["prior_distance"], float)
+    share = float(np.mean(d > float(extras["prior_distance_limit"]))) if len(d) else 0.0
+    return (BROADER_PRIOR[used], share) if share > SWITCH_SHARE else None

@@ -40,10 +40,12 @@ class Weights:
         standard deviation times ``pose_prior`` (2: nine clips are a small sample of human
         poses; ``None``: the rest-pose prior of ``sigma_posture``, as other figures).
     pose_prior_model : ``"auto"`` (the human's for ``Figure.human()``, else none), ``"none"``, or
-        a prior in ``models/priors`` (``"cmu_bvh_pose"``: CMU BVH figures; ``"human_pose_mixture"``:
-        the generic human's as a mixture of 8 Gaussians over 57 clips, better on the run and
-        dance, worse on a detector walk's depth: bench/README.md) or a JSON file of
-        ``tools/fit_pose_prior.py``; one that does not fit is refused (``rows.posture.prior_for``).
+        a prior in ``models/priors`` (``"human_pose"``: the human's default, one Gaussian, kept
+        whatever the clip; ``"human_pose_mixture"``: a mixture of 8 Gaussians over 57 clips,
+        which ``"auto"`` solves a clip again with when the default does not know more than half
+        of its poses, :func:`pinrecon.unfamiliar.broader_prior`; ``"cmu_bvh_pose"``: CMU BVH
+        figures) or a JSON file of ``tools/fit_pose_prior.py``; one that does not fit is refused
+        (``rows.posture.prior_for``).
     pose_prior_loss, pose_prior_k : robust loss on a frame's Mahalanobis distance, quadratic up
         to ``k`` (``None``: always), then ``"huber"`` linear or ``"cauchy"`` logarithmic (better
         on dance, worse for an auto focal: bench/README.md; :class:`~.rows.posture.PosePrior`).

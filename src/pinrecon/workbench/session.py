@@ -148,6 +148,10 @@ class Session:
         self._segments = segments(figure)
         if result is None:
             result = self._reconstruct(kf, None, self.options, None)
+        if "prior_model" in result.extras and self.weights.pose_prior_model == "auto":
+            # the result was solved again with a broader pose prior (pinrecon.unfamiliar.broader_prior):
+            # the edits' solves, warm, keep that one
+            self.weights = replace(self.weights, pose_prior_model=str(result.extras["prior_model"]))
         q = figure.check_q(np.asarray(result.q, float), field="result.q")
         if q.shape != (self.n_frames, figure.nq):
             raise InputError(f"the result has shape {q.shape}, the tracks need {(self.n_frames, figure.nq)}",

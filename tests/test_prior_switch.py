@@ -1,0 +1,99 @@
+"""A clip whose poses the default pose prior does not know is solved again with the broader
+one (``pinrecon.unfamiliar.broader_prior``): the rule by itself, then end to end on a motion
+no prior knows (random joint motion of the human figure, projected by hand) against a walk
+the default knows (CMU 02_01, not among the prior's clips); the result and its summary say
+which prior was used, and the workbench keeps it for its warm solves."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+
+import pinrecon as pr
+from pinrecon.problem import Weights
+from pinrecon.synthetic import COCO_BODY_FROM_CMU, bundled_motion, coco_body_tracks, perspective_side_camera, smooth_motion
+from pinrecon.tracks import keyframes_from_points
+from pinrecon.unfamiliar import SWITCH_SHARE, broader_prior
+
+NAMES = list(COCO_BODY_FROM_CMU)
+
+
+def _extras(share, limit=6.0, T=100):
+    d = np.full(T, limit - 1.0)
+    d[: int(round(share * T))] = limit + 1.0
+    return {"prior_distance": d, "prior_distance_limit": np.float64(limit)}
+
+
+def test_the_rule():
+    assert SWITCH_SHARE == 0.5
+    assert broader_prior("human_pose", "auto", _extras(0.51)) == ("human_pose_mixture", pytest.approx(0.51))
+    assert broader_prior("human_pose", "auto", _extras(0.50)) is None  # more than half, not half
+    assert broader_prior("human_pose", "human_pose", _extras(0.9)) is None  # named by the user: kept
+    assert broader_prior("human_pose_mixture", "auto", _extras(0.9)) is None  # nothing broader
+    assert broader_prior(None, "auto", _extras(0.9)) is None  # no learned prior (other figures)
+    assert broader_prior("human_pose", "auto", {}) is None  # no check was run
+
+
+@pytest.fixture(scope="module")
+def random_motion():
+    fig = pr.Figure.human()
+    T = 40
+    Q = smooth_motion(fig, T, 30.0, seed=3, amplitude=0.3)
+    cam = pr.Perspective.look_at([2.0, 0.9, 4.5], [0.5, 0.0, 0.0], f_px=1000.0, center=(960.0, 540.0))
+    P = fig.keypoints(Q)[:, fig.keypoint_index(NAMES)]
+    uv = cam.project(P) + np.random.default_rng(0).normal(0.0, 1.0, P.shape[:2] + (2,))
+    keys = keyframes_from_points(range(0, T, 10), P, NAMES, 0.02)
+    return fig, pr.Tracks(uv, NAMES, 30.0, np.full(uv.shape[:2], 0.9)), cam, keys
+
+
+def _solve(fig, tracks, cam, keys, **kw):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return pr.reconstruct(fig, tracks, cam, keys, calibrate="none", floor="none", **kw)
+
+
+def test_unknown_poses_are_solved_again_with_the_broader_prior(random_motion, tmp_path):
+    fig, tracks, cam, keys = random_motion
+    named = _solve(fig, tracks, cam, keys, weights=Weights(pose_prior_model="human_pose"))
+    share = float(np.mean(named.extras["prior_distance"] > named.extras["prior_distance_limit"]))
+    assert share > SWITCH_SHARE and "prior_model" not in named.extras  # named: no switch, however unfamiliar
+    res = _solve(fig, tracks, cam, keys)
+    assert str(res.extras["prior_model"]) == "human_pose_mixture"
+    assert float(res.extras["prior_default_unfamiliar"]) == pytest.approx(share)
+    # it is the solve with the broader prior named, from the same start
+    mixture = _solve(fig, tracks, cam, keys, weights=Weights(pose_prior_model="human_pose_mixture"))
+    np.testing.assert_allclose(res.q, mixture.q, atol=1e-9)
+    # its distances are the mixture's: its limit, not the default's
+    assert float(res.extras["prior_distance_limit"]) == float(mixture.extras["prior_distance_limit"])
+    assert float(res.extras["prior_distance_limit"]) != float(named.extras["prior_distance_limit"])
+    assert f"pose prior: human_pose_mixture (the default did not know {100 * share:.0f} % of the frames" in res.summary()
+    res.save(tmp_path / "r.npz")  # a saved result says it too
+    back = pr.load_result(tmp_path / "r.npz")
+    assert str(back.extras["prior_model"]) == "human_pose_mixture" and "pose prior: human_pose_mixture" in back.summary()
+    # a warm start keeps the prior it is given
+    warm = _solve(fig, tracks, cam, keys, init=named.q, options=pr.SolverOptions(max_iterations=2))
+    assert "prior_model" not in warm.extras
+
+
+def test_a_walk_the_default_knows_keeps_it():
+    fig_c, q, fps = bundled_motion("walk")
+    q = q[:120:4]
+    cam = perspective_side_camera(q, 45.0)
+    tracks, P = coco_body_tracks(fig_c, q, cam, fps=fps / 4)
+    keys = keyframes_from_points([0, len(q) - 1], P, list(tracks.names), 0.05)
+    res = _solve(pr.Figure.human(), tracks, cam, keys)
+    assert "prior_model" not in res.extras
+    assert np.mean(res.extras["prior_distance"] > res.extras["prior_distance_limit"]) <= SWITCH_SHARE
+
+
+def test_the_workbench_keeps_the_broader_prior(random_motion):
+    from pinrecon.workbench.session import Session
+
+    fig, tracks, cam, keys = random_motion
+    res = _solve(fig, tracks, cam, keys)
+    session = Session(fig, tracks, cam, keys, result=res, floor="none")
+    assert session.weights.pose_prior_model == "human_pose_mixture"
+    named = Session(fig, tracks, cam, keys, result=res, floor="none", weights=Weights(pose_prior_model="human_pose"))
+    assert named.weights.pose_prior_model == "human_pose"  # a prior the user named is kept
