@@ -13,7 +13,13 @@ import pytest
 
 import pinrecon as pr
 from pinrecon.problem import Weights
-from pinrecon.synthetic import COCO_BODY_FROM_CMU, bundled_motion, coco_body_tracks, perspective_side_camera, smooth_motion
+from pinrecon.synthetic import (
+    COCO_BODY_FROM_CMU,
+    bundled_motion,
+    coco_body_tracks,
+    perspective_side_camera,
+    smooth_motion,
+)
 from pinrecon.tracks import keyframes_from_points
 from pinrecon.unfamiliar import SWITCH_SHARE, broader_prior
 
@@ -22,7 +28,7 @@ NAMES = list(COCO_BODY_FROM_CMU)
 
 def _extras(share, limit=6.0, T=100):
     d = np.full(T, limit - 1.0)
-    d[: int(round(share * T))] = limit + 1.0
+    d[: round(share * T)] = limit + 1.0
     return {"prior_distance": d, "prior_distance_limit": np.float64(limit)}
 
 

@@ -147,7 +147,7 @@ class Result:
             if len(unc) > limit:
                 lines.append(f"  ... and {len(unc) - limit} more")
         if "prior_default_unfamiliar" in x:
-            lines.append(f"pose prior: {str(x['prior_model'])} (the default did not know "
+            lines.append(f"pose prior: {x['prior_model']!s} (the default did not know "
                          f"{100 * float(x['prior_default_unfamiliar']):.0f} % of the frames' poses: solved again "
                          "with this broader one; pinrecon.unfamiliar.broader_prior)")
         d, lim, sp = unfamiliar_frames(x)
