@@ -349,7 +349,7 @@ def test_docs_result_keys_are_the_keys_result_save_writes(human, tmp_path):
     from pinrecon.contact import FOOT_EXTRAS
     from pinrecon.faults import FaultReport
     from pinrecon.starts.hypotheses import HypothesisReport
-    from pinrecon.unfamiliar import UnfamiliarPoses
+    from pinrecon.unfamiliar import UnfamiliarPoses, switch_extras
 
     two = replace(result, cameras=[result.camera, Orthographic(np.eye(3), 90.0)], camera_names=["a", "b"],
                   reprojection_error_px_per_camera=np.zeros((2, 3)), calibration={"mode": "camera"})
@@ -358,7 +358,7 @@ def test_docs_result_keys_are_the_keys_result_save_writes(human, tmp_path):
         extra = set(z.files) - set(written)
     extra |= set(FOOT_EXTRAS) | set(FaultReport().to_extras())
     extra |= set(HypothesisReport(chains=[], states=np.zeros((3, 0), int), gaps=np.zeros((3, 0))).to_extras())
-    extra |= set(UnfamiliarPoses(np.zeros(3), 9.0).to_extras())
+    extra |= set(UnfamiliarPoses(np.zeros(3), 9.0).to_extras()) | set(switch_extras("human_pose_mixture", 0.9))
     cells = re.findall(r"^\| ([^|]+) \|", sometimes, re.M)
     conditional = {k for c in cells for k in re.findall(r"`(\w+)`", c)}
     assert conditional == extra

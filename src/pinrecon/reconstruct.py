@@ -49,7 +49,7 @@ from .starts.camera_auto import (
     settle_focal,
 )
 from .tracks import Keyframe, Keyframes, Markers, Tracks
-from .unfamiliar import BROADER_PRIOR, broader_prior, unfamiliar_poses
+from .unfamiliar import BROADER_PRIOR, broader_prior, switch_extras, unfamiliar_poses
 from .windowed import solve_windowed, windowed_length
 
 __all__ = [
@@ -373,8 +373,7 @@ def _broader(args: dict, default: str) -> Result:
         return result
     name, share = switch
     again = reconstruct(**{**args, "weights": replace(w, pose_prior_model=name)})
-    again.extras["prior_model"] = np.array(name)
-    again.extras["prior_default_unfamiliar"] = np.float64(share)
+    again.extras.update(switch_extras(name, share))
     return again
 
 

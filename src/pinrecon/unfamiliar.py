@@ -38,7 +38,7 @@ import numpy as np
 
 from .rows.posture import PosePrior
 
-__all__ = ["BROADER_PRIOR", "SWITCH_SHARE", "UnfamiliarPoses", "broader_prior", "unfamiliar_poses"]
+__all__ = ["BROADER_PRIOR", "SWITCH_SHARE", "UnfamiliarPoses", "broader_prior", "switch_extras", "unfamiliar_poses"]
 
 #: the broader prior a clip is solved again with when its default prior does not know most of
 #: its poses: the generic human's single Gaussian (walking, running, jumping, basketball; sharp
@@ -100,3 +100,10 @@ def broader_prior(used: str | None, model: str, extras: dict) -> tuple[str, floa
     d = np.asarray(extras["prior_distance"], float)
     share = float(np.mean(d > float(extras["prior_distance_limit"]))) if len(d) else 0.0
     return (BROADER_PRIOR[used], share) if share > SWITCH_SHARE else None
+
+
+def switch_extras(name: str, share: float) -> dict:
+    """What a result solved again with the broader prior ``name`` carries in ``extras``: its
+    name (``prior_model``) and the share of frames the default did not know
+    (``prior_default_unfamiliar``)."""
+    return {"prior_model": np.array(name), "prior_default_unfamiliar": np.float64(share)}
