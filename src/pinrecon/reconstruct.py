@@ -49,7 +49,7 @@ from .starts.camera_auto import (
     settle_focal,
 )
 from .tracks import Keyframe, Keyframes, Markers, Tracks
-from .unfamiliar import BROADER_PRIOR, broader_prior, switch_extras, unfamiliar_poses
+from .unfamiliar import BROADER_PRIOR, SWITCH_SHARE, broader_prior, switch_extras, unfamiliar_poses
 from .windowed import solve_windowed, windowed_length
 
 __all__ = [
@@ -488,7 +488,7 @@ def _package(problem: ReconstructionProblem, res: SolveResult, auto: dict | None
         err = np.where(err_n > 0, err_sum / np.maximum(err_n, 1), np.nan)
     unfamiliar = unfamiliar_poses(problem, Q)  # where the pose prior extrapolates
     if unfamiliar is not None:  # ... and with it an auto camera's focal length, which one view owes to the prior
-        auto = doubt_focal(auto, unfamiliar.share)
+        auto = doubt_focal(auto, unfamiliar.share, limit=SWITCH_SHARE)
     result = Result(
         figure, Q, np.arange(T) / problem.fps, problem.fps, P, err, res, observed,
         cameras=problem.cameras_at(g), camera_names=problem.camera_names,

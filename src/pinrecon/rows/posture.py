@@ -130,8 +130,9 @@ class PosePrior(Posture):
         self._corr_col = np.array([pos[int(self.qcorr[i])] for i in self._corr_in], int)
 
     def _residuals(self, Q):
-        """(rd, rc, const): the diagonal rows (joints outside ``qcorr``), the Mahalanobis rows
-        of each frame's component (the one of least cost) and that component's constant."""
+        """(rd, rc, const, best): the diagonal rows (joints outside ``qcorr``), the Mahalanobis
+        rows of each frame's component (the one of least cost), that component's constant and
+        its index."""
         rd = (Q[:, self.qidx[self.diag]] - self.q_ref[self.diag]) * self.inv_sigma[self.diag]
         z = Q[:, None, self.qcorr] - self.means  # (T, K, d)
         rc = np.einsum("kij,tkj->tki", self.As, z)
