@@ -134,14 +134,18 @@ class PosePrior(Posture):
         rows of each frame's component (the one of least cost), that component's constant and
         its index."""
         rd = (Q[:, self.qidx[self.diag]] - self.q_ref[self.diag]) * self.inv_sigma[self.diag]
-        z = Q[:, None, self.qcorr] - self.means  # (T, K, d)
-        rc = np.einsum("kij,tkj->tki", self.As, z)
+        rc = self._whitened(Q)
         if len(self.means) == 1:
             return rd, rc[:, 0], np.zeros(len(Q)), np.zeros(len(Q), int)
         m = np.linalg.norm(rc, axis=2)
         cost = (0.5 * m**2 if self.k is None else self._robust(m)[0]) + self.consts
         best = np.argmin(cost, axis=1)
         return rd, rc[np.arange(len(Q)), best], self.consts[best], best
+
+    def _whitened(self, Q):
+        """(T, K, d) the correlated joints' offsets from each component's mean, whitened by it
+        (in units of ``scale``): their norms are the frame's Mahalanobis distances."""
+        return np.einsum("kij,tkj->tki", self.As, Q[:, None, self.qcorr] - self.means)
 
     def evaluate(self, state: State, jacobian: bool = True) -> RowBlock:
         N, c, nd, dc = len(self.frames), len(self.cols), len(self.diag), len(self.qcorr)
@@ -183,8 +187,7 @@ class PosePrior(Posture):
         """(T,) each frame's Mahalanobis distance of the correlated joints from the mean (of
         a mixture: from the nearest component's), in standard deviations of the prior's clips
         (not in units of ``scale``)."""
-        z = np.asarray(Q, float)[:, None, self.qcorr] - self.means
-        return self.scale * np.linalg.norm(np.einsum("kij,tkj->tki", self.As, z), axis=2).min(axis=1)
+        return self.scale * np.linalg.norm(self._whitened(np.asarray(Q, float)), axis=2).min(axis=1)
 
     def frame_costs(self, Q) -> np.ndarray:
         """(T,) each frame's cost of trajectory ``Q`` (T, nq) under this prior (the robust
