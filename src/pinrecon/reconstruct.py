@@ -159,8 +159,8 @@ def _camera_and_mode(figure, tracks, camera, keyframes, calibrate, image_size=No
                 "at the origin, looking along +Z, +Y up)"}
         if auto.projection == "perspective":
             desc["fov_deg"] = float(auto.fov_deg)
-            X, uv = keyframe_correspondences(tracks, keyframes)
-            if posed and len(X) >= 6:  # how far they fix the focal length, placing the camera too
+            X, uv = keyframe_correspondences(tracks, keyframes) if posed else ((), ())
+            if len(X) >= 6:  # how far they fix the focal length, placing the camera too
                 (lo, hi), bounded = keyframe_focal_interval(X, uv, camera)
                 desc["keyframe_focal"] = {"interval_px": [lo, hi], "bounded": list(bounded), "points": len(X),
                                           "frames": len({k.frame for k in keyframes if k.points})}
