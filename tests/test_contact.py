@@ -145,6 +145,35 @@ def test_floor_estimate_on_the_stepping_clip():
     assert abs(fl2.offset_m - (d + 0.01)) < 0.003  # through the planted toes (1 cm above the plane)
 
 
+
+def test_floor_tilt_found_where_the_planted_points_spread_over_10_cm():
+    """A dancer's planted ankles (a few stances over a 40 cm patch, spread 15 cm along one
+    direction and 4 cm across it), the prior up leaning 8 degrees along the spread (a
+    one-camera reconstruction's leg depths; bench_contact's generic dance): the floor's tilt
+    along the spread is the points' own."""
+    rng = np.random.default_rng(4)
+    n = np.array([0.0, 1.0, 0.0])
+    along, across = np.array([1.0, 0.0, 0.0]), np.array([0.0, 0.0, 1.0])
+    fps, T = 60.0, 600
+    P = np.zeros((T, 2, 3))
+    for f in range(2):  # stances of 1 s at random spots, the foot still within each
+        for a in range(0, T, 60):
+            spot = rng.normal(0.0, 0.15) * along + rng.normal(0.0, 0.04) * across + 0.2 * f * across
+            P[a : a + 60, f] = spot + 0.08 * n
+    P += rng.normal(0.0, 0.002, P.shape)
+    tilt = np.radians(8.0)
+    up = np.cos(tilt) * n + np.sin(tilt) * along
+    fl = estimate_floor(P, up=up, fps=fps)
+    tilt_along = np.degrees(np.arcsin(abs(fl.n @ along)))
+    assert tilt_along < 1.0, tilt_along  # the points' own tilt (0), not the prior's 8 degrees
+    # across, where the stances spread 4 cm, the prior holds (it leans 0 there; the
+    # stances' sampled spread turns the stiff direction by a few degrees)
+    assert np.degrees(np.arccos(np.clip(fl.n @ n, -1, 1))) < 1.5
+    # with the old 25 cm the whole floor followed the prior
+    assert np.degrees(np.arcsin(abs(estimate_floor(P, up=up, fps=fps, min_spread_m=0.25).n @ along))) > 7.5
+    assert abs(fl.height(P).mean()) < 0.005  # through the planted points
+
+
 def _two_lanes(P, n):
     """The stepping clip walked twice, the second time 1.2 m to the side on the same plane."""
     u = np.cross(n, [0.0, 0.0, 1.0])
