@@ -50,6 +50,9 @@ that smoother, made tractable by the figure's structure (geometry in :mod:`.limb
 6. **Choice.** Every candidate (limbs on the base, limbs on the flipped trunk, their
    splice, the base alone, and with keyframes the planarity seed) is solved
    ``final_options`` long with the whole problem; the lowest MAP cost is the start.
+7. **Turns.** Where the chosen start's root turns fast (a pirouette), it is wound a whole
+   turn either way and kept where the MAP cost falls (:mod:`.turns`): a turn taken the
+   wrong way round, or a spurious one, is the trunk's own discrete ambiguity over time.
 
 Measured in ``bench/bench_real.py`` (README there).
 
@@ -87,6 +90,7 @@ from .limbs import (
 )
 from .paths import min_sum_path, span_gaps
 from .rest import rest_start
+from .turns import wind_turns
 
 __all__ = ["UNCERTAIN_GAP", "HypothesisReport", "Span", "frame_costs", "hypotheses_start", "min_sum_path",
            "search_hypotheses", "span_gaps", "splice_path"]
@@ -138,6 +142,7 @@ class HypothesisReport:
     kept_base: bool = False
     chosen: str = "limbs"
     trunk_switches: list = field(default_factory=list)
+    turns: list = field(default_factory=list)  # the fast turns tried (pinrecon.starts.turns.Turn)
 
     def uncertain_spans(self) -> list[Span]:
         return [s for s in self.spans if s.gap < self.threshold]
@@ -152,6 +157,8 @@ class HypothesisReport:
             "hypothesis_gaps": self.gaps,
             "hypothesis_threshold": np.float64(self.threshold),
             "hypothesis_chosen": np.array(self.chosen),
+            "hypothesis_turns": np.array([[t.first, t.last, t.turns, t.gain] for t in self.turns],
+                                         float).reshape(-1, 4),
         }
 
 
@@ -415,6 +422,7 @@ def search_hypotheses(
     threshold: float = UNCERTAIN_GAP,
     splice_sigma_m: float = 0.05,
     acc_weight: float = 0.0,
+    turns: bool = True,
 ) -> tuple[np.ndarray, HypothesisReport]:
     """The multi-hypothesis start and its report (see the module docstring).
 
@@ -448,6 +456,9 @@ def search_hypotheses(
         the planarity seed) is solved ``final_options`` long and the lowest MAP cost wins
         (``report.chosen``, ``report.alternatives``).
     threshold : spans with a smaller cost gap (nats) are reported uncertain.
+    turns : the chosen start wound through its fast turns (:func:`~pinrecon.starts.turns.
+        wind_turns`: a whole turn more or less about the body's up axis where the root turns
+        faster than 300 degrees per second, kept when the MAP cost falls; ``report.turns``).
     splice_sigma_m : the splice's switch between the trunk candidates at frame t costs
         ``0.5 sum_k |p_k^A(t) - p_k^B(t)|^2 / splice_sigma_m^2`` (0: no splice). The
         spliced candidate's frames from the flipped trunk are ``report.trunk_switches``
@@ -522,6 +533,8 @@ def search_hypotheses(
             cost, Q, won = ref.cost, fig.normalize(ref.x), label
     report.kept_base = won == "base"
     report.chosen = won
+    if turns:
+        Q, report.turns = wind_turns(problem, Q, final_options, cost=cost)
     return fig.clamp(Q, margin=1e-3), report
 
 

@@ -1,0 +1,114 @@
+"""The trunk's winding through fast turns (pinrecon.starts.turns), against motions whose
+answer is known: each rotation below is written out here with SciPy, not taken from the
+module."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+import pinrecon as pr
+from pinrecon.problem import make_problem
+from pinrecon.solver import SolverOptions, solve
+from pinrecon.starts.turns import fast_turn_windows, turn_angle, turn_axis, wind, wind_turns
+from pinrecon.synthetic import (
+    COCO_BODY_FROM_CMU,
+    human_walk,
+    perspective_side_camera,
+    project_tracks,
+)
+
+NAMES = list(COCO_BODY_FROM_CMU)
+
+
+def _spun(Q, first, last, turns, up=(0.0, 1.0, 0.0)):
+    """Q with ``turns`` whole turns about world ``up`` added between ``first`` and ``last``
+    along a smoothstep, written out independently of :func:`wind`."""
+    Q = np.array(Q, float)
+    for t in range(len(Q)):
+        s = min(max((t - first) / (last - first), 0.0), 1.0)
+        s = s * s * (3 - 2 * s)
+        R = Rotation.from_rotvec(2 * np.pi * turns * s * np.asarray(up)) * Rotation.from_quat(Q[t, 3:7])
+        Q[t, 3:7] = R.as_quat()
+    return Q
+
+
+def _angle_deg(Qa, Qb):
+    return np.degrees((Rotation.from_quat(Qa[:, 3:7]).inv() * Rotation.from_quat(Qb[:, 3:7])).magnitude())
+
+
+def test_wind_is_a_whole_turn_inside_the_window_and_nothing_outside():
+    _, Q = human_walk(40, 30.0)
+    up = np.array([0.0, 1.0, 0.0])
+    W = wind(Q, up, 10, 30, 1)
+    assert np.all(_angle_deg(W, _spun(Q, 10, 30, 1)) < 1e-6)
+    d = _angle_deg(W, Q)
+    assert np.all(d[:11] < 1e-6) and np.all(d[30:] < 1e-6)
+    assert d[20] == pytest.approx(180.0, abs=1e-6)  # halfway through the smoothstep: half a turn
+    assert np.allclose(W[:, :3], Q[:, :3]) and np.allclose(W[:, 7:], Q[:, 7:])  # the root's place, the joints
+
+
+def test_turn_axis_and_fast_windows_of_a_spin():
+    fig = pr.Figure.human()
+    _, Q = human_walk(120, 60.0)
+    S = _spun(Q, 40, 70, -1)  # a whole turn in half a second: 720 degrees/s at its mean
+    axis, up = turn_axis(fig, S)
+    # the human's local y is up (this walk's pelvis leans forward 25 degrees, hence the slack)
+    assert axis == 1 and np.degrees(np.arccos(up @ np.array([0.0, 1.0, 0.0]))) < 30.0
+    a = turn_angle(fig, S, axis, up)
+    assert np.degrees(abs(a[-1] - a[0])) == pytest.approx(360.0, abs=25.0)  # the walk itself turns a little
+    ws = fast_turn_windows(a, 60.0, rate_dps=300.0, margin_s=0.1)
+    assert len(ws) == 1
+    (lo, hi), = ws
+    assert 34 <= lo <= 48 and 62 <= hi <= 76  # the spin's fast middle, 6 frames (0.1 s) either side
+    assert fast_turn_windows(turn_angle(fig, Q, axis, up), 60.0) == []  # the walk alone: no fast turn
+
+
+def test_turn_axis_refuses_a_tumbling_figure():
+    fig = pr.Figure.human()
+    _, Q = human_walk(60, 30.0)
+    Q = Q.copy()
+    rot = Rotation.from_rotvec(np.outer(np.linspace(0, 2 * np.pi, 60, endpoint=False), [1.0, 0.0, 0.0]))
+    Q[:, 3:7] = (rot * Rotation.from_quat(Q[:, 3:7])).as_quat()  # somersaults: every axis sweeps around
+    Q2 = Q.copy()
+    rot2 = Rotation.from_rotvec(np.outer(np.linspace(0, 2 * np.pi, 60, endpoint=False), [0.0, 0.0, 1.0]))
+    Q2[:, 3:7] = (rot2 * Rotation.from_quat(Q[:, 3:7])).as_quat()
+    assert turn_axis(fig, Q2) is None
+
+
+def test_a_spurious_turn_is_wound_out():
+    """A walk seen from 50 degrees; the start has a whole turn the walker never made (a sixth
+    of a second, as the dance's start had in frames 95-115): wound out, the start's root is
+    back within a few degrees of the truth's everywhere, and the report says so."""
+    fig = pr.Figure.human()
+    _, Q = human_walk(60, 30.0)
+    cam = perspective_side_camera(Q, 50.0, distance_m=5.0)
+    tracks = project_tracks(fig, Q, cam, NAMES, fps=30.0, noise_px=1.0, seed=3)
+    problem = make_problem(fig, tracks, cam)
+    start = _spun(Q, 25, 31, 1)
+    assert _angle_deg(start, Q).max() > 170.0
+    out, report = wind_turns(problem, start)
+    assert [(t.turns, t.first <= 26 and t.last >= 30) for t in report] == [(-1, True)]
+    assert report[0].gain > 100.0
+    # as close as the same solve started from the truth itself (one view, no keyframes:
+    # its root settles tens of degrees off, the same in every frame), not a turn apart
+    direct = solve(problem, fig.clamp(Q, 1e-3), SolverOptions(max_iterations=40, ftol=1e-4), active=problem.active)
+    assert np.abs(_angle_deg(out, Q) - _angle_deg(fig.normalize(direct.x), Q)).max() < 5.0
+    assert _angle_deg(out, Q).max() < 60.0
+
+
+def test_the_report_and_the_summary_say_what_was_wound():
+    from types import SimpleNamespace
+
+    from pinrecon.starts.hypotheses import HypothesisReport
+    from pinrecon.starts.turns import Turn
+
+    rep = HypothesisReport([], np.zeros((10, 0), int), np.zeros((10, 0)), turns=[Turn(2, 8, -1, 812.4), Turn(8, 10, 0, 0.0)])
+    ex = rep.to_extras()
+    assert ex["hypothesis_turns"].tolist() == [[2.0, 8.0, -1.0, 812.4], [8.0, 10.0, 0.0, 0.0]]
+    lines = pr.Result.faults_summary(SimpleNamespace(extras=ex, fps=30.0, figure=None))
+    wound = [s for s in lines if s.startswith("trunk turned")]
+    assert wound == [("trunk turned -1 whole turn in frames 2-7 (0.07-0.23 s), 812 nats cheaper (a fast turn the "
+                      "start took the wrong way round; pinrecon.starts.turns)")]
+    assert "hypothesis_turns" in HypothesisReport([], np.zeros((1, 0), int), np.zeros((1, 0))).to_extras()
