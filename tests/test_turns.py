@@ -50,23 +50,21 @@ def test_wind_is_a_whole_turn_inside_the_window_and_nothing_outside():
 
 
 def test_turn_axis_and_fast_windows_of_a_spin():
-    fig = pr.Figure.human()
     _, Q = human_walk(120, 60.0)
     S = _spun(Q, 40, 70, -1)  # a whole turn in half a second: 720 degrees/s at its mean
-    axis, up = turn_axis(fig, S)
+    axis, up = turn_axis(S)
     # the human's local y is up (this walk's pelvis leans forward 25 degrees, hence the slack)
     assert axis == 1 and np.degrees(np.arccos(up @ np.array([0.0, 1.0, 0.0]))) < 30.0
-    a = turn_angle(fig, S, axis, up)
+    a = turn_angle(S, axis, up)
     assert np.degrees(abs(a[-1] - a[0])) == pytest.approx(360.0, abs=25.0)  # the walk itself turns a little
     ws = fast_turn_windows(a, 60.0, rate_dps=300.0, margin_s=0.1)
     assert len(ws) == 1
     (lo, hi), = ws
     assert 34 <= lo <= 48 and 62 <= hi <= 76  # the spin's fast middle, 6 frames (0.1 s) either side
-    assert fast_turn_windows(turn_angle(fig, Q, axis, up), 60.0) == []  # the walk alone: no fast turn
+    assert fast_turn_windows(turn_angle(Q, axis, up), 60.0) == []  # the walk alone: no fast turn
 
 
 def test_turn_axis_refuses_a_tumbling_figure():
-    fig = pr.Figure.human()
     _, Q = human_walk(60, 30.0)
     Q = Q.copy()
     rot = Rotation.from_rotvec(np.outer(np.linspace(0, 2 * np.pi, 60, endpoint=False), [1.0, 0.0, 0.0]))
@@ -74,7 +72,7 @@ def test_turn_axis_refuses_a_tumbling_figure():
     Q2 = Q.copy()
     rot2 = Rotation.from_rotvec(np.outer(np.linspace(0, 2 * np.pi, 60, endpoint=False), [0.0, 0.0, 1.0]))
     Q2[:, 3:7] = (rot2 * Rotation.from_quat(Q[:, 3:7])).as_quat()
-    assert turn_axis(fig, Q2) is None
+    assert turn_axis(Q2) is None
 
 
 def test_a_spurious_turn_is_wound_out():

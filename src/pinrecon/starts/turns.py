@@ -7,7 +7,7 @@ nearly every frame still fits the image, and what is wrong is the *winding*, a d
 ambiguity like a limb's reflection that no small step of Gauss-Newton crosses. On
 ``bench_real``'s dance (05_11) without keyframes the start's trunk spun a spurious whole turn
 in a sixth of a second (frames 95-115 at 120 fps) where the dancer barely turned, and took
-the pirouette (392 degrees in 100 frames) forwards and back; its cost was 1200-2600 nats
+the pirouette (392 degrees in 100 frames) forwards and back; its MAP cost was 1100-2700 nats
 above the same trajectory wound right.
 
 :func:`wind_turns` finds the windows in which the root turns faster than ``rate_dps`` about
@@ -42,18 +42,18 @@ class Turn:
     gain: float
 
 
-def _root_rotations(figure, Q) -> np.ndarray:
+def _root_rotations(Q) -> np.ndarray:
     """(T, 3, 3) the free-flyer root's rotation matrices (x y z w quaternions in ``Q[:, 3:7]``)."""
     return Rotation.from_quat(np.asarray(Q, float)[:, 3:7]).as_matrix()
 
 
-def turn_axis(figure, Q, min_resultant: float = 0.7) -> tuple[int, np.ndarray] | None:
+def turn_axis(Q, min_resultant: float = 0.7) -> tuple[int, np.ndarray] | None:
     """The root's local axis that stays put in the world over ``Q`` (the body's up, about
     which it turns): ``(local axis index, world direction)``, the axis whose world
     directions have the longest mean resultant (a pelvis leaning 25 degrees that spins
     about the vertical has 0.9, and its mean direction is the vertical); None if even that
     is shorter than ``min_resultant`` (the figure tumbles: no up axis to wind about)."""
-    R = _root_rotations(figure, Q)
+    R = _root_rotations(Q)
     means = R.mean(axis=0)  # (3, 3): column j the mean world direction of local axis j
     lengths = np.linalg.norm(means, axis=0)
     j = int(np.argmax(lengths))
@@ -62,10 +62,10 @@ def turn_axis(figure, Q, min_resultant: float = 0.7) -> tuple[int, np.ndarray] |
     return j, means[:, j] / lengths[j]
 
 
-def turn_angle(figure, Q, axis: int, up) -> np.ndarray:
+def turn_angle(Q, axis: int, up) -> np.ndarray:
     """(T,) the root's heading about world direction ``up`` (radians, unwrapped): the angle
     of its next local axis after ``axis``, projected on the plane normal to ``up``."""
-    R = _root_rotations(figure, Q)
+    R = _root_rotations(Q)
     up = np.asarray(up, float)
     v = R[:, :, (axis + 1) % 3]
     v = v - (v @ up)[:, None] * up
@@ -126,12 +126,12 @@ def wind_turns(problem, Q, options: SolverOptions | None = None, *, cost: float 
     fig = problem.figure
     if not fig.floating or problem.n_frames < 3:
         return Q, []
-    found = turn_axis(fig, Q)
+    found = turn_axis(Q)
     if found is None:
         return Q, []
     axis, up = found
     fps = float(problem.fps or 30.0)
-    windows = fast_turn_windows(turn_angle(fig, Q, axis, up), fps, rate_dps, margin_s)
+    windows = fast_turn_windows(turn_angle(Q, axis, up), fps, rate_dps, margin_s)
     if not windows:
         return Q, []
     options = options or SolverOptions(max_iterations=40, ftol=1e-4)
