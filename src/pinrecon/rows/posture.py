@@ -128,6 +128,12 @@ class PosePrior(Posture):
         # columns of the active correlated joints: (k in qcorr, k in cols)
         self._corr_in = np.array([i for i, q in enumerate(self.qcorr) if int(q) in pos], int)
         self._corr_col = np.array([pos[int(self.qcorr[i])] for i in self._corr_in], int)
+        # (K, rows, cols) each component's Jacobian of its rows (the constant's row: zero); fixed
+        nd, dc, mixed = len(self.diag), len(self.qcorr), len(self.means) > 1
+        self._Jf = np.zeros((len(self.means), nd + dc + int(mixed), len(self.cols)))
+        self._Jf[:, np.arange(nd), self.diag] = self.inv_sigma[self.diag]
+        for i, A in enumerate(self.As):
+            self._Jf[i][np.ix_(nd + np.arange(dc), self._corr_col)] = A[:, self._corr_in]
 
     def _residuals(self, Q):
         """(rd, rc, const, best): the diagonal rows (joints outside ``qcorr``), the Mahalanobis
@@ -148,7 +154,7 @@ class PosePrior(Posture):
         return np.einsum("kij,tkj->tki", self.As, Q[:, None, self.qcorr] - self.means)
 
     def evaluate(self, state: State, jacobian: bool = True) -> RowBlock:
-        N, c, nd, dc = len(self.frames), len(self.cols), len(self.diag), len(self.qcorr)
+        N, nd, dc = len(self.frames), len(self.diag), len(self.qcorr)
         rd, rc, const, best = self._residuals(state.Q)
         mixed = len(self.means) > 1
         cv = None
@@ -160,11 +166,8 @@ class PosePrior(Posture):
         r = np.concatenate(parts, axis=1)
         J = None
         if jacobian:
-            nr = nd + dc + int(mixed)
-            Jf = np.zeros((len(self.means), nr, c))
-            Jf[:, np.arange(nd), self.diag] = self.inv_sigma[self.diag]
-            for k in range(len(self.means)):
-                Jf[k][np.ix_(nd + np.arange(dc), self._corr_col)] = self.As[k][:, self._corr_in]
+            Jf = self._Jf
+            nr = Jf.shape[1]
             if self.k is None and not mixed:
                 J = np.broadcast_to(Jf[0], (N, 1) + Jf.shape[1:])
             else:
