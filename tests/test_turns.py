@@ -11,7 +11,14 @@ from scipy.spatial.transform import Rotation
 import pinrecon as pr
 from pinrecon.problem import make_problem
 from pinrecon.solver import SolverOptions, solve
-from pinrecon.starts.turns import fast_turn_windows, turn_angle, turn_axis, wind, wind_turns
+from pinrecon.starts.turns import (
+    fast_turn_windows,
+    split_at,
+    turn_angle,
+    turn_axis,
+    wind,
+    wind_turns,
+)
 from pinrecon.synthetic import (
     COCO_BODY_FROM_CMU,
     human_walk,
@@ -94,6 +101,26 @@ def test_a_spurious_turn_is_wound_out():
     direct = solve(problem, fig.clamp(Q, 1e-3), SolverOptions(max_iterations=40, ftol=1e-4), active=problem.active)
     assert np.abs(_angle_deg(out, Q) - _angle_deg(fig.normalize(direct.x), Q)).max() < 5.0
     assert _angle_deg(out, Q).max() < 60.0
+
+
+def test_windows_are_cut_at_keyframes():
+    assert split_at([(10, 50), (60, 80)], [0, 30, 49, 70, 100]) == [(10, 30), (30, 50), (60, 70), (70, 80)]
+    assert split_at([(10, 50)], [11, 200]) == [(11, 50)]  # a piece under 3 frames is dropped
+    assert split_at([(10, 50)], []) == [(10, 50)]
+
+
+def test_winding_the_pieces_leaves_every_keyframe_pose_as_it_was():
+    """A fast window with a keyframe inside: wound whole, the keyframe's frame turns with it
+    (half a turn at the window's middle); wound piece by piece, every keyframe frame keeps
+    its orientation (angles from SciPy)."""
+    _, Q = human_walk(60, 30.0)
+    up = np.array([0.0, 1.0, 0.0])
+    assert _angle_deg(wind(Q, up, 20, 36, 1), Q)[28] > 170.0
+    for a, b in split_at([(20, 36)], [28, 33]):
+        for k in (1, -1):
+            moved = _angle_deg(wind(Q, up, a, b, k), Q)
+            assert moved[[20, 28, 33, 36]].max() < 1e-6
+            assert moved[a:b].max() > 90.0 or b - a < 6
 
 
 def test_the_report_and_the_summary_say_what_was_wound():
