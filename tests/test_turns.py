@@ -137,3 +137,32 @@ def test_the_report_and_the_summary_say_what_was_wound():
     assert wound == [("trunk turned -1 whole turn in frames 2-7 (0.07-0.23 s), 812 nats cheaper (a fast turn the "
                       "start took the wrong way round; pinrecon.starts.turns)")]
     assert "hypothesis_turns" in HypothesisReport([], np.zeros((1, 0), int), np.zeros((1, 0))).to_extras()
+
+
+def test_the_solved_motion_is_wound_too():
+    """turn_stage: a solution that kept a whole turn the walker never made (the start's
+    turns are decided before the whole problem is solved) is wound out after the solve, the
+    global unknowns free as in the solve; the result's extras and summary say so."""
+    from types import SimpleNamespace
+
+    from pinrecon.starts.turns import turn_stage
+
+    fig = pr.Figure.human()
+    _, Q = human_walk(60, 30.0)
+    cam = perspective_side_camera(Q, 50.0, distance_m=5.0)
+    tracks = project_tracks(fig, Q, cam, NAMES, fps=30.0, noise_px=1.0, seed=3)
+    problem = make_problem(fig, tracks, cam)
+    options = SolverOptions(max_iterations=40, ftol=1e-4)
+    spun = solve(problem, fig.clamp(_spun(Q, 25, 31, 1), 1e-3), options, active=problem.active)
+    assert _angle_deg(fig.normalize(spun.x), Q).max() > 90.0  # the solve alone keeps (most of) the turn
+    out = turn_stage(problem, spun, options)
+    assert out.cost < spun.cost - 100.0
+    direct = solve(problem, fig.clamp(Q, 1e-3), options, active=problem.active)
+    assert np.abs(_angle_deg(fig.normalize(out.x), Q) - _angle_deg(fig.normalize(direct.x), Q)).max() < 5.0
+    ex = problem.reports["turns"].to_extras()
+    rows = ex["solution_turns"]
+    assert rows.shape[1] == 4 and list(rows[rows[:, 2] != 0][:, 2]) == [-1.0]
+    lines = pr.Result.faults_summary(SimpleNamespace(extras=ex, fps=30.0, figure=None))
+    assert any(s.startswith("trunk turned -1 whole turn") and "turn_stage" in s for s in lines)
+    # a solution without a fast turn is returned as it is
+    assert turn_stage(problem, direct, options) is direct

@@ -48,6 +48,7 @@ from .starts.camera_auto import (
     keyframe_focal_interval,
     settle_focal,
 )
+from .starts.turns import turn_stage
 from .tracks import Keyframe, Keyframes, Markers, Tracks
 from .unfamiliar import BROADER_PRIOR, SWITCH_SHARE, broader_prior, switch_extras, unfamiliar_poses
 from .windowed import solve_windowed, windowed_length
@@ -330,6 +331,7 @@ def reconstruct(
                   "weights": weights, "keypoints": keypoints}
         problem, q0 = _lengths_from_tracks(problem, q0, _start_name(init, seed), inputs)
     res = solve(problem, q0, options, callback, active=problem.active, g0=problem.g0)
+    res = turn_stage(problem, res, options, callback)  # the solution's fast turns wound (warm re-solves)
     res = fault_stage(problem, res, options, callback)  # left/right swaps repaired (warm re-solve), outliers
     faulted = res
     res, auto = settle_focal(problem, res, auto, options=options)  # an auto camera's focal: down its valley

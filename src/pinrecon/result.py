@@ -15,7 +15,7 @@ from .cameras import camera_from_dict
 from .contact import FOOT_EXTRAS, FootContact, foot_metrics
 
 #: extras of the hypotheses start, the fault stage and the pose prior's check, kept by :func:`load_result`
-FAULT_EXTRAS_PREFIXES = ("hypothesis_", "repaired_", "outlier_", "prior_")
+FAULT_EXTRAS_PREFIXES = ("hypothesis_", "repaired_", "outlier_", "prior_", "solution_turns")
 from .errors import InputError
 from .figure import Figure, parse_keypoint_entries
 from .io.results import load_result_npz, save_result_npz
@@ -151,6 +151,11 @@ class Result:
             lines.append(f"trunk turned {int(k):+d} whole turn in frames {int(a)}-{int(b) - 1} ({a / self.fps:.2f}-"
                          f"{(b - 1) / self.fps:.2f} s), {gain:.0f} nats cheaper (a fast turn the start took the "
                          "wrong way round; pinrecon.starts.turns)")
+        wound = np.asarray(x.get("solution_turns", np.zeros((0, 4))), float).reshape(-1, 4)
+        for a, b, k, gain in wound[wound[:, 2] != 0]:
+            lines.append(f"trunk turned {int(k):+d} whole turn in frames {int(a)}-{int(b) - 1} ({a / self.fps:.2f}-"
+                         f"{(b - 1) / self.fps:.2f} s), {gain:.0f} nats cheaper (a fast turn the solve had the "
+                         "wrong way round; pinrecon.starts.turns.turn_stage)")
         if "prior_default_unfamiliar" in x:
             lines.append(f"pose prior: {x['prior_model']!s} (the default did not know "
                          f"{100 * float(x['prior_default_unfamiliar']):.0f} % of the frames' poses: solved again "

@@ -27,20 +27,33 @@ turn too few on both sides of 197; cut there, the one before it is wound (1000-1
 cheaper), and PA-MPJPE goes from 66.1 to 56.0 mm at 45 degrees and 75.3 to 45.9 mm at 60
 (flips 18.8 -> 15.6 and 30.9 -> 17.8 %); before the cut these four keyframes did worse
 than the first and last alone (55.1 and 50.0 mm).
+
+The start's turns are decided before the whole problem is solved, and the keyframe start
+(denser keyframes) has no turn step at all: it interpolates the root between keyframes, a
+whole turn short wherever the figure turns more than half a turn between two of them.
+:func:`turn_stage` therefore winds the *solved* motion as well (the pipeline runs it right
+after the solve, candidates solved warm with the global unknowns free, at most 40
+iterations each, a kept one solved to the end). On the dance with four keyframes at 45
+degrees it winds the piece after frame 197 that the start left (1361 nats cheaper):
+56.0 -> 37.5 mm, 15.6 -> 11.1 % flips; with six (the keyframe start) it winds two pieces
+of the pirouette: 78.8 -> 49.1 mm, 23.5 -> 16.4 %. Where the solution's fast turns are
+right (the dance with first and last keyframes, or none) nothing is kept and the stage
+costs its trial solves: 47 -> 53 s and 69 -> 76 s on the dance.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from itertools import pairwise
 
 import numpy as np
 from scipy.ndimage import uniform_filter1d
 from scipy.spatial.transform import Rotation
 
-from ..solver import SolverOptions, solve
+from ..solver import SolverOptions, globals_of, solve
 
-__all__ = ["Turn", "fast_turn_windows", "split_at", "turn_angle", "turn_axis", "wind", "wind_turns"]
+__all__ = ["Turn", "TurnStage", "fast_turn_windows", "split_at", "turn_angle", "turn_axis", "turn_stage", "wind",
+           "wind_turns"]
 
 
 @dataclass
@@ -140,6 +153,37 @@ def wind(Q, up, first: int, last: int, turns: int) -> np.ndarray:
     return Q
 
 
+def _windows(problem, Q, rate_dps, margin_s):
+    """(up axis, fast-turn windows cut at the keyframes) of ``Q``, or None."""
+    if not problem.figure.floating or problem.n_frames < 3:
+        return None
+    found = turn_axis(Q)
+    if found is None:
+        return None
+    axis, up = found
+    windows = fast_turn_windows(turn_angle(Q, axis, up), float(problem.fps or 30.0), rate_dps, margin_s)
+    windows = split_at(windows, [int(k.frame) * problem.factor for k in (problem.keyframes or ())])
+    return (up, windows) if windows else None
+
+
+def _wind_windows(problem, Q, cost, up, windows, solve_one, min_gain):
+    """Each window wound a whole turn either way from the current best and solved
+    (``solve_one(Q) -> SolveResult``); the cheaper kept when it saves more than
+    ``min_gain``. Returns (the last kept SolveResult or None, a :class:`Turn` per window)."""
+    fig = problem.figure
+    kept, report = None, []
+    for a, b in windows:
+        best, best_k = None, 0
+        for k in (1, -1):
+            res = solve_one(fig.clamp(fig.normalize(wind(Q, up, a, b, k)), 1e-3))
+            if res.cost < (cost if best is None else best.cost) - min_gain:
+                best, best_k = res, k
+        report.append(Turn(a, b, best_k, cost - float(best.cost) if best is not None else 0.0))
+        if best is not None:
+            kept, Q, cost = best, fig.normalize(best.x), float(best.cost)
+    return kept, report
+
+
 def wind_turns(problem, Q, options: SolverOptions | None = None, *, cost: float | None = None,
                rate_dps: float = 300.0, margin_s: float = 0.1,
                min_gain: float = 1.0) -> tuple[np.ndarray, list[Turn]]:
@@ -147,34 +191,64 @@ def wind_turns(problem, Q, options: SolverOptions | None = None, *, cost: float 
     :func:`fast_turn_windows` of the root's heading, ``Q`` wound a whole turn either way
     and solved warm (``options``, the global unknowns held at their start); the cheaper is
     kept when it saves more than ``min_gain`` nats. A window is cut at the problem's
-    keyframes inside it (:func:`split_at`) and each piece wound on its own. ``cost``: ``Q``'s MAP cost when ``Q``
-    is already a solution with ``options`` (else it is solved first). Returns (the
-    trajectory, solved if a winding was kept, else ``Q`` itself; a :class:`Turn` per
-    window)."""
+    keyframes inside it (:func:`split_at`) and each piece wound on its own. ``cost``: ``Q``'s
+    MAP cost when ``Q`` is already a solution with ``options`` (else it is solved first).
+    Returns (the trajectory, solved if a winding was kept, else ``Q`` itself; a
+    :class:`Turn` per window)."""
     fig = problem.figure
-    if not fig.floating or problem.n_frames < 3:
-        return Q, []
-    found = turn_axis(Q)
+    found = _windows(problem, Q, rate_dps, margin_s)
     if found is None:
-        return Q, []
-    axis, up = found
-    fps = float(problem.fps or 30.0)
-    windows = fast_turn_windows(turn_angle(Q, axis, up), fps, rate_dps, margin_s)
-    windows = split_at(windows, [int(k.frame) * problem.factor for k in (problem.keyframes or ())])
-    if not windows:
         return Q, []
     options = options or SolverOptions(max_iterations=40, ftol=1e-4)
     if cost is None:
         cur = solve(problem, fig.clamp(Q, 1e-3), options, active=problem.active)
         Q, cost = fig.normalize(cur.x), float(cur.cost)
-    report = []
-    for a, b in windows:
-        best, best_cost, best_k = None, cost, 0
-        for k in (1, -1):
-            res = solve(problem, fig.clamp(fig.normalize(wind(Q, up, a, b, k)), 1e-3), options, active=problem.active)
-            if res.cost < best_cost - min_gain:
-                best, best_cost, best_k = fig.normalize(res.x), float(res.cost), k
-        report.append(Turn(a, b, best_k, cost - best_cost))
-        if best is not None:
-            Q, cost = best, best_cost
-    return Q, report
+    kept, report = _wind_windows(problem, Q, cost, *found,
+                                 lambda X: solve(problem, X, options, active=problem.active), min_gain)
+    return (Q if kept is None else fig.normalize(kept.x)), report
+
+
+@dataclass
+class TurnStage:
+    """The windows :func:`turn_stage` tried on the solved motion; ``to_extras`` gives
+    ``Result.extras["solution_turns"]`` (W, 4): first frame, frame after the last, the
+    turns kept (0: none), the nats saved."""
+
+    turns: list
+
+    def to_extras(self) -> dict:
+        return {"solution_turns": np.array([[t.first, t.last, t.turns, t.gain] for t in self.turns],
+                                           float).reshape(-1, 4)}
+
+
+def turn_stage(problem, res, options: SolverOptions | None = None, callback=None, *, rate_dps: float = 300.0,
+               margin_s: float = 0.1, min_gain: float = 1.0, trial_iterations: int = 40):
+    """The solved motion ``res`` (a :class:`~pinrecon.solver.SolveResult`) wound through its
+    fast turns as :func:`wind_turns` winds a start, each candidate solved warm with
+    ``options`` and the global unknowns free from the solution's, as the solve itself had
+    them (the fault stage's way). A start's turns are decided before the whole problem is
+    solved; the solution's heading can still hold a turn too few where a keyframe or a
+    second solve put it (bench/README.md, "The dance with more keyframes"). Each candidate
+    is solved at most ``trial_iterations`` long (a real fast turn, such as a pirouette solved
+    right, is a window too, and its two candidates are tried every time); a winding kept is
+    then solved to the end with ``options``. Returns that solve (``res`` itself when no
+    winding saves ``min_gain`` nats); the windows tried go to ``problem.reports["turns"]``
+    (:class:`TurnStage`)."""
+    fig = problem.figure
+    Q = fig.normalize(res.x)
+    found = _windows(problem, Q, rate_dps, margin_s)
+    if found is None:
+        return res
+    g = globals_of(res)
+    kw = {"g0": g} if g is not None else {}
+    options = options or SolverOptions()
+    trial = replace(options, max_iterations=min(options.max_iterations, trial_iterations))
+    kept, report = _wind_windows(problem, Q, float(res.cost), *found,
+                                 lambda X: solve(problem, X, trial, callback, active=problem.active, **kw), min_gain)
+    reports = getattr(problem, "reports", None)
+    if reports is not None:
+        reports["turns"] = TurnStage(report)
+    if kept is None:
+        return res
+    g = globals_of(kept)  # the kept winding solved to the end with the solve's own options
+    return solve(problem, kept.x, options, callback, active=problem.active, **({"g0": g} if g is not None else {}))
