@@ -4,6 +4,8 @@ module."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
@@ -103,6 +105,16 @@ def test_a_spurious_turn_is_wound_out():
     assert _angle_deg(out, Q).max() < 60.0
 
 
+def test_turned_back_is_the_drawdown_against_the_net_turn():
+    from pinrecon.starts.turns import turned_back
+
+    assert turned_back(np.radians([0.0, 90.0, 180.0, 360.0])) == 0.0  # a steady turn
+    assert turned_back(np.radians([0.0, -90.0, -360.0])) == 0.0  # the other way
+    assert np.isclose(np.degrees(turned_back(np.radians([0.0, 100.0, 40.0, 120.0]))), 60.0)
+    assert np.isclose(np.degrees(turned_back(np.radians([0.0, -50.0, 30.0, -80.0]))), 80.0)  # -50 back to +30
+    assert turned_back(np.zeros(1)) == 0.0
+
+
 def test_windows_are_cut_at_keyframes():
     assert split_at([(10, 50), (60, 80)], [0, 30, 49, 70, 100]) == [(10, 30), (30, 50), (60, 70), (70, 80)]
     assert split_at([(10, 50)], [11, 200]) == [(11, 50)]  # a piece under 3 frames is dropped
@@ -155,7 +167,10 @@ def test_the_solved_motion_is_wound_too():
     options = SolverOptions(max_iterations=40, ftol=1e-4)
     spun = solve(problem, fig.clamp(_spun(Q, 25, 31, 1), 1e-3), options, active=problem.active)
     assert _angle_deg(fig.normalize(spun.x), Q).max() > 90.0  # the solve alone keeps (most of) the turn
-    out = turn_stage(problem, spun, options)
+    # by default only windows that turn back against their net turn are tried (a turn too few
+    # between keyframes); this spurious turn is one way, so it is left to the start's winding
+    assert turn_stage(problem, spun, options) is spun
+    out = turn_stage(problem, spun, options, min_back_deg=None)  # every window
     assert out.cost < spun.cost - 100.0
     direct = solve(problem, fig.clamp(Q, 1e-3), options, active=problem.active)
     assert np.abs(_angle_deg(fig.normalize(out.x), Q) - _angle_deg(fig.normalize(direct.x), Q)).max() < 5.0
@@ -164,5 +179,7 @@ def test_the_solved_motion_is_wound_too():
     assert rows.shape[1] == 4 and list(rows[rows[:, 2] != 0][:, 2]) == [-1.0]
     lines = pr.Result.faults_summary(SimpleNamespace(extras=ex, fps=30.0, figure=None))
     assert any(s.startswith("trunk turned -1 whole turn") and "turn_stage" in s for s in lines)
-    # a solution without a fast turn is returned as it is
+    # a solution without a fast turn is returned as it is, and so is a solve the user stopped
     assert turn_stage(problem, direct, options) is direct
+    stopped = replace(spun, status="stopped by callback")
+    assert turn_stage(problem, stopped, options) is stopped

@@ -33,12 +33,13 @@ The start's turns are decided before the whole problem is solved, and the keyfra
 whole turn short wherever the figure turns more than half a turn between two of them.
 :func:`turn_stage` therefore winds the *solved* motion as well (the pipeline runs it right
 after the solve, candidates solved warm with the global unknowns free, at most 40
-iterations each, a kept one solved to the end). On the dance with four keyframes at 45
-degrees it winds the piece after frame 197 that the start left (1361 nats cheaper):
-56.0 -> 37.5 mm, 15.6 -> 11.1 % flips; with six (the keyframe start) it winds two pieces
-of the pirouette: 78.8 -> 49.1 mm, 23.5 -> 16.4 %. Where the solution's fast turns are
-right (the dance with first and last keyframes, or none) nothing is kept and the stage
-costs its trial solves: 47 -> 53 s and 69 -> 76 s on the dance.
+iterations each, a kept one solved to the end), in the windows where the solution's
+heading turns back against its net turn (:func:`turned_back`: a turn too few between two
+keyframes follows the images round and comes back to meet the next keyframe). On the
+dance with four keyframes at 45 degrees it winds the piece after frame 197 that the start
+left (1361 nats cheaper): 56.0 -> 37.5 mm, 15.6 -> 11.1 % flips; with six (the keyframe
+start) it winds the pirouette's pieces: 78.8 -> 50.2 mm, 23.5 -> 17.1 % (bench/README.md,
+"The dance with more keyframes").
 """
 
 from __future__ import annotations
@@ -52,8 +53,8 @@ from scipy.spatial.transform import Rotation
 
 from ..solver import SolverOptions, globals_of, solve
 
-__all__ = ["Turn", "TurnStage", "fast_turn_windows", "split_at", "turn_angle", "turn_axis", "turn_stage", "wind",
-           "wind_turns"]
+__all__ = ["Turn", "TurnStage", "fast_turn_windows", "split_at", "turn_angle", "turn_axis", "turn_stage", "turned_back",
+           "wind", "wind_turns"]
 
 
 @dataclass
@@ -153,17 +154,32 @@ def wind(Q, up, first: int, last: int, turns: int) -> np.ndarray:
     return Q
 
 
-def _windows(problem, Q, rate_dps, margin_s):
-    """(up axis, fast-turn windows cut at the keyframes) of ``Q``, or None."""
+def _windows(problem, Q, rate_dps, margin_s, min_back_deg=None):
+    """(up axis, fast-turn windows cut at the keyframes) of ``Q``, or None; with
+    ``min_back_deg`` only the windows in which the heading turns back against its own net
+    turn by more than that (:func:`turned_back`)."""
     if not problem.figure.floating or problem.n_frames < 3:
         return None
     found = turn_axis(Q)
     if found is None:
         return None
     axis, up = found
-    windows = fast_turn_windows(turn_angle(Q, axis, up), float(problem.fps or 30.0), rate_dps, margin_s)
+    angle = turn_angle(Q, axis, up)
+    windows = fast_turn_windows(angle, float(problem.fps or 30.0), rate_dps, margin_s)
     windows = split_at(windows, [int(k.frame) * problem.factor for k in (problem.keyframes or ())])
+    if min_back_deg is not None:
+        windows = [(a, b) for a, b in windows if turned_back(angle[a:b]) > np.radians(min_back_deg)]
     return (up, windows) if windows else None
+
+
+def turned_back(angle) -> float:
+    """How far (radians) a heading ``angle`` (n,) turns back against its net turn over the
+    window (the largest drawdown along the net direction; 0 for a steady turn either way)."""
+    angle = np.asarray(angle, float)
+    if len(angle) < 2:
+        return 0.0
+    x = angle if angle[-1] >= angle[0] else -angle
+    return float(np.max(np.maximum.accumulate(x) - x))
 
 
 def _wind_windows(problem, Q, cost, up, windows, solve_one, min_gain):
@@ -222,21 +238,28 @@ class TurnStage:
 
 
 def turn_stage(problem, res, options: SolverOptions | None = None, callback=None, *, rate_dps: float = 300.0,
-               margin_s: float = 0.1, min_gain: float = 1.0, trial_iterations: int = 40):
+               margin_s: float = 0.1, min_gain: float = 1.0, trial_iterations: int = 40,
+               min_back_deg: float = 15.0):
     """The solved motion ``res`` (a :class:`~pinrecon.solver.SolveResult`) wound through its
     fast turns as :func:`wind_turns` winds a start, each candidate solved warm with
     ``options`` and the global unknowns free from the solution's, as the solve itself had
     them (the fault stage's way). A start's turns are decided before the whole problem is
     solved; the solution's heading can still hold a turn too few where a keyframe or a
-    second solve put it (bench/README.md, "The dance with more keyframes"). Each candidate
-    is solved at most ``trial_iterations`` long (a real fast turn, such as a pirouette solved
-    right, is a window too, and its two candidates are tried every time); a winding kept is
-    then solved to the end with ``options``. Returns that solve (``res`` itself when no
+    second solve put it (bench/README.md, "The dance with more keyframes"). Only the windows
+    in which the solution turns back against its own net turn by more than ``min_back_deg``
+    are tried (:func:`turned_back`): a turn too few between two keyframes shows as a heading
+    that follows the images round and comes back to meet the next keyframe, where a pirouette
+    solved right turns one way (the lab dance, a keyframe every quarter second, has 8 such
+    pieces and none turning back; trying them all took its solve from 1.2 to 20.8 s);
+    ``min_back_deg=None`` tries every window. Each candidate is solved at most
+    ``trial_iterations`` long; a winding kept is then solved to the end with ``options``. Returns that solve (``res`` itself when no
     winding saves ``min_gain`` nats); the windows tried go to ``problem.reports["turns"]``
     (:class:`TurnStage`)."""
     fig = problem.figure
+    if res.status == "stopped by callback":  # the user stopped the solve: not to be resumed here
+        return res
     Q = fig.normalize(res.x)
-    found = _windows(problem, Q, rate_dps, margin_s)
+    found = _windows(problem, Q, rate_dps, margin_s, min_back_deg)
     if found is None:
         return res
     g = globals_of(res)
