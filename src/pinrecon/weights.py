@@ -27,7 +27,14 @@ class Weights:
         of confidence 1 (errors are scaled by ``sqrt(c)`` first: ``loss_scale_px / sqrt(c)`` px).
     sigma_limits : joint-limit barrier, radians (small = stiff).
     acc_root_translation, acc_root_rotation, acc_joints : smoothing, standard deviation of
-        acceleration in m/s^2 and rad/s^2 (constant-velocity prior; large = weak).
+        acceleration in m/s^2 and rad/s^2 (constant-velocity prior; large = weak). The root's
+        translation is held at 2 m/s^2 (5 before): one camera does not see its depth, and at 5
+        the dance of ``bench/bench_real.py`` swung 0.3-0.6 m towards the camera and back
+        through its pirouette (a figure nearer the camera must foreshorten its limbs to keep
+        its image, so its limbs flipped with it); at 2, without keyframes, its PA-MPJPE fell
+        from 91.6-120.8 to 72.1-97.6 mm and its flips from 28.3-30.7 to 21.0-24.1 % at 45, 50,
+        55 and 60 degrees, and the walk's from 20.7 / 4.4 % to 19.7 / 3.9 with first and last
+        keyframes (README, "Root smoothing").
     sigma_markers_m : 3D marker noise for :func:`reconstruct_markers`, metres.
     sigma_init_prior : prior pulling unkeyed joints to the rest pose when a point keyframe
         is turned into a pose (radians).
@@ -61,7 +68,7 @@ class Weights:
     loss: str = "auto"
     loss_scale_px: float | None = None
     sigma_limits: float = 0.01
-    acc_root_translation: float = 5.0
+    acc_root_translation: float = 2.0
     acc_root_rotation: float = 10.0
     acc_joints: float = 10.0
     sigma_markers_m: float = 0.01
