@@ -146,16 +146,13 @@ class Result:
                              f"{(b - 1) / self.fps:.2f} s), gap {gap:.1f}")
             if len(unc) > limit:
                 lines.append(f"  ... and {len(unc) - limit} more")
-        wound = np.asarray(x.get("hypothesis_turns", np.zeros((0, 4))), float).reshape(-1, 4)
-        for a, b, k, gain in wound[wound[:, 2] != 0]:
-            lines.append(f"trunk turned {int(k):+d} whole turn in frames {int(a)}-{int(b) - 1} ({a / self.fps:.2f}-"
-                         f"{(b - 1) / self.fps:.2f} s), {gain:.0f} nats cheaper (a fast turn the start took the "
-                         "wrong way round; pinrecon.starts.turns)")
-        wound = np.asarray(x.get("solution_turns", np.zeros((0, 4))), float).reshape(-1, 4)
-        for a, b, k, gain in wound[wound[:, 2] != 0]:
-            lines.append(f"trunk turned {int(k):+d} whole turn in frames {int(a)}-{int(b) - 1} ({a / self.fps:.2f}-"
-                         f"{(b - 1) / self.fps:.2f} s), {gain:.0f} nats cheaper (a fast turn the solve had the "
-                         "wrong way round; pinrecon.starts.turns.turn_stage)")
+        for key, who, where in (("hypothesis_turns", "start took", "pinrecon.starts.turns"),
+                                ("solution_turns", "solve had", "pinrecon.starts.turns.turn_stage")):
+            wound = np.asarray(x.get(key, np.zeros((0, 4))), float).reshape(-1, 4)
+            for a, b, k, gain in wound[wound[:, 2] != 0]:
+                lines.append(f"trunk turned {int(k):+d} whole turn in frames {int(a)}-{int(b) - 1} ({a / self.fps:.2f}-"
+                             f"{(b - 1) / self.fps:.2f} s), {gain:.0f} nats cheaper (a fast turn the {who} the "
+                             f"wrong way round; {where})")
         if "prior_default_unfamiliar" in x:
             lines.append(f"pose prior: {x['prior_model']!s} (the default did not know "
                          f"{100 * float(x['prior_default_unfamiliar']):.0f} % of the frames' poses: solved again "

@@ -90,7 +90,7 @@ from .limbs import (
 )
 from .paths import min_sum_path, span_gaps
 from .rest import rest_start
-from .turns import wind_turns
+from .turns import turns_array, wind_turns
 
 __all__ = ["UNCERTAIN_GAP", "HypothesisReport", "Span", "frame_costs", "hypotheses_start", "min_sum_path",
            "search_hypotheses", "span_gaps", "splice_path"]
@@ -157,8 +157,7 @@ class HypothesisReport:
             "hypothesis_gaps": self.gaps,
             "hypothesis_threshold": np.float64(self.threshold),
             "hypothesis_chosen": np.array(self.chosen),
-            "hypothesis_turns": np.array([[t.first, t.last, t.turns, t.gain] for t in self.turns],
-                                         float).reshape(-1, 4),
+            "hypothesis_turns": turns_array(self.turns),
         }
 
 

@@ -54,7 +54,7 @@ from scipy.spatial.transform import Rotation
 from ..solver import SolverOptions, globals_of, solve
 
 __all__ = ["Turn", "TurnStage", "fast_turn_windows", "split_at", "turn_angle", "turn_axis", "turn_stage", "turned_back",
-           "wind", "wind_turns"]
+           "turns_array", "wind", "wind_turns"]
 
 
 @dataclass
@@ -66,6 +66,12 @@ class Turn:
     last: int
     turns: int
     gain: float
+
+
+def turns_array(turns) -> np.ndarray:
+    """(W, 4) :class:`Turn` rows for ``Result.extras``: first frame, frame after the last,
+    the turns kept (0: none), the nats saved."""
+    return np.array([[t.first, t.last, t.turns, t.gain] for t in turns], float).reshape(-1, 4)
 
 
 def _root_rotations(Q) -> np.ndarray:
@@ -233,8 +239,7 @@ class TurnStage:
     turns: list
 
     def to_extras(self) -> dict:
-        return {"solution_turns": np.array([[t.first, t.last, t.turns, t.gain] for t in self.turns],
-                                           float).reshape(-1, 4)}
+        return {"solution_turns": turns_array(self.turns)}
 
 
 def turn_stage(problem, res, options: SolverOptions | None = None, callback=None, *, rate_dps: float = 300.0,
@@ -252,9 +257,9 @@ def turn_stage(problem, res, options: SolverOptions | None = None, callback=None
     solved right turns one way (the lab dance, a keyframe every quarter second, has 8 such
     pieces and none turning back; trying them all took its solve from 1.2 to 20.8 s);
     ``min_back_deg=None`` tries every window. Each candidate is solved at most
-    ``trial_iterations`` long; a winding kept is then solved to the end with ``options``. Returns that solve (``res`` itself when no
-    winding saves ``min_gain`` nats); the windows tried go to ``problem.reports["turns"]``
-    (:class:`TurnStage`)."""
+    ``trial_iterations`` long; a winding kept is then solved to the end with ``options``.
+    Returns that solve (``res`` itself when no winding saves ``min_gain`` nats); the windows
+    tried go to ``problem.reports["turns"]`` (:class:`TurnStage`)."""
     fig = problem.figure
     if res.status == "stopped by callback":  # the user stopped the solve: not to be resumed here
         return res
@@ -262,16 +267,14 @@ def turn_stage(problem, res, options: SolverOptions | None = None, callback=None
     found = _windows(problem, Q, rate_dps, margin_s, min_back_deg)
     if found is None:
         return res
-    g = globals_of(res)
-    kw = {"g0": g} if g is not None else {}
+    def warm(r, X, opts):  # solved from X with r's global unknowns as the start of theirs
+        g = globals_of(r)
+        return solve(problem, X, opts, callback, active=problem.active, **({"g0": g} if g is not None else {}))
+
     options = options or SolverOptions()
     trial = replace(options, max_iterations=min(options.max_iterations, trial_iterations))
-    kept, report = _wind_windows(problem, Q, float(res.cost), *found,
-                                 lambda X: solve(problem, X, trial, callback, active=problem.active, **kw), min_gain)
+    kept, report = _wind_windows(problem, Q, float(res.cost), *found, lambda X: warm(res, X, trial), min_gain)
     reports = getattr(problem, "reports", None)
     if reports is not None:
         reports["turns"] = TurnStage(report)
-    if kept is None:
-        return res
-    g = globals_of(kept)  # the kept winding solved to the end with the solve's own options
-    return solve(problem, kept.x, options, callback, active=problem.active, **({"g0": g} if g is not None else {}))
+    return res if kept is None else warm(kept, kept.x, options)  # a kept winding solved to the end
