@@ -647,8 +647,8 @@ def solve_on_the_floor(problem, res, floor="auto", contact="auto", *, settings: 
         g = globals_of(res)
         feet = ground_contacts(problem, x, floor, contact, s, names=names, g=g)
         out_problem = problem.with_rows(contact_rows(problem.figure, feet, problem.fps, s, problem.factor) + hold)
-        res = solve(out_problem, x, options, callback, active=problem.active,
-                    **({} if g is None else {"g0": g, "active_globals": _free_globals(problem, g)}))
+        res = solve(out_problem, x, options, callback, active=problem.active, g0=g,
+                    active_globals=None if g is None else _free_globals(problem, g))
         x = res.x
     return out_problem, res, feet
 

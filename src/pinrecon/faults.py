@@ -206,8 +206,7 @@ def fault_stage(problem, res: SolveResult, options: SolverOptions | None = None,
                 found = True
         if not found:
             break
-        kw = {"g0": g} if g is not None else {}
-        res = solve(problem, res.x, options, callback, active=problem.active, **kw)
+        res = solve(problem, res.x, options, callback, active=problem.active, g0=g)
         g = globals_of(res)
     reports = getattr(problem, "reports", None)
     names = _camera_names(problem, len(views))

@@ -269,7 +269,7 @@ def turn_stage(problem, res, options: SolverOptions | None = None, callback=None
         return res
     def warm(r, X, opts):  # solved from X with r's global unknowns as the start of theirs
         g = globals_of(r)
-        return solve(problem, X, opts, callback, active=problem.active, **({"g0": g} if g is not None else {}))
+        return solve(problem, X, opts, callback, active=problem.active, g0=g)
 
     options = options or SolverOptions()
     trial = replace(options, max_iterations=min(options.max_iterations, trial_iterations))
