@@ -183,3 +183,34 @@ def test_the_solved_motion_is_wound_too():
     assert turn_stage(problem, direct, options) is direct
     stopped = replace(spun, status="stopped by callback")
     assert turn_stage(problem, stopped, options) is stopped
+
+
+def test_each_window_of_a_long_clip_is_wound_too(monkeypatch):
+    """The windowed solve (long clips) runs the turn stage in every window, as the batch
+    pipeline does after its solve: a spurious whole turn in the second window's start is
+    wound out, and the report names it in the clip's frames, not the window's."""
+    from functools import partial
+
+    import pinrecon.windowed as windowed
+    from pinrecon.starts.turns import turn_stage
+
+    fig = pr.Figure.human()
+    _, Q = human_walk(120, 30.0)
+    cam = perspective_side_camera(Q, 50.0, distance_m=5.0)
+    tracks = project_tracks(fig, Q, cam, NAMES, fps=30.0, noise_px=1.0, seed=3)
+    problem = make_problem(fig, tracks, cam)
+    options = SolverOptions(max_iterations=40, ftol=1e-4)
+    start = fig.clamp(_spun(Q, 90, 96, 1), 1e-3)  # windows (0, 79) and (40, 119): the turn in the second only
+    # every fast window tried: the default's filter (tested above) leaves a one-way turn to the start
+    monkeypatch.setattr(windowed, "turn_stage", partial(turn_stage, min_back_deg=None))
+    kept = windowed.solve_windowed(problem, start, options, window=80, turns=False, faults=False)
+    assert "windowed (2 windows" in kept.status and "turns" not in problem.reports
+    assert _angle_deg(fig.normalize(kept.x), Q)[88:100].max() > 90.0  # the window's solve alone keeps it
+    wound = windowed.solve_windowed(problem, start, options, window=80, faults=False)
+    direct = windowed.solve_windowed(problem, fig.clamp(Q, 1e-3), options, window=80, turns=False, faults=False)
+    assert np.abs(_angle_deg(fig.normalize(wound.x), Q) - _angle_deg(fig.normalize(direct.x), Q)).max() < 5.0
+    assert wound.cost < kept.cost - 100.0
+    rows = problem.reports["turns"].to_extras()["solution_turns"]
+    turned = rows[rows[:, 2] != 0]
+    assert len(turned) == 1 and turned[0, 2] == -1.0
+    assert 40 <= turned[0, 0] <= 90 and 96 <= turned[0, 1] <= 120  # the clip's frames
