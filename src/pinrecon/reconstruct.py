@@ -246,10 +246,12 @@ def reconstruct(
         frames have no observation); default ``tracks.fps``.
     weights : :class:`~pinrecon.problem.Weights`. With the generic human's pose prior chosen by
         default (``pose_prior_model="auto"``) and a cold start, a clip whose poses that prior
-        does not know (more than half of its frames, :mod:`pinrecon.unfamiliar`) is solved
-        again from its start with the broader ``human_pose_mixture``
-        (:func:`pinrecon.unfamiliar.broader_prior`; the first solve's warnings are dropped);
-        the result says so (``extras["prior_model"]``, its summary).
+        does not know (more than half of the main solve's frames, before the turn, fault and
+        feet stages; :mod:`pinrecon.unfamiliar`) is solved again from its start with the
+        broader ``human_pose_mixture`` (:func:`pinrecon.unfamiliar.broader_prior`; the first
+        solve's warnings are dropped), and only that solve goes on through the stages; the
+        result says so (``extras["prior_model"]``, its summary). A clip solved in windows
+        decides on the whole first result.
     init : a (T_out, nq) start (a warm start), or the name of a start; ``"default"`` is
         the rest-pose start. Default: the keyframe start when there are keyframes, else
         the rest-pose start (the rest pose placed on the tracks and rigidly fitted).
@@ -302,49 +304,72 @@ def reconstruct(
     ``result.cameras`` the fitted cameras and ``result.calibration`` the factors, the
     fitted lengths and focal lengths.
     """
-    if _may_broaden(figure, weights, init):  # the default prior named, then maybe a broader one
-        return _broader(dict(locals()), prior_for(figure, "auto"))
     off = floor is False or isinstance(floor, str) and floor.strip().lower() == "none"
     if off and contact not in (None, False):
         raise InputError("contacts need a floor: drop floor='none' or the contacts", field="contact")
     floor, contact = (None, None) if off else (floor, contact)
     camera, mode, auto = _camera_and_mode(figure, tracks, camera, keyframes, calibrate, image_size,
                                           lengths_from_tracks=bool(lengths_from_tracks))
-    problem = make_problem(figure, tracks, camera, keyframes, fps_out=fps_out, weights=weights, keypoints=keypoints,
-                           calibrate=mode)
+    default = prior_for(figure, "auto") if _may_broaden(figure, weights, init) else None
+    if default is not None:  # the default prior named; a broader one when it does not know the clip
+        weights = replace(weights or Weights(), pose_prior_model=default)
+    inputs = {"figure": figure, "tracks": tracks, "camera": camera, "keyframes": keyframes, "fps_out": fps_out,
+              "weights": weights, "keypoints": keypoints}
+    problem = make_problem(**inputs, calibrate=mode)
     span = windowed_length(problem.n_frames, window if window is not None or floor is None and contact is None else 0)
     if span and calibrate is None and mode in ("lengths", "lengths+camera") and \
             default_calibrate(figure, keyframes, several_views=_several_views(tracks)) == "none":
         # windows measure no lengths: the default without 3D information stays the figure's own
         mode = "camera" if auto is not None else "none"
-        problem = make_problem(figure, tracks, camera, keyframes, fps_out=fps_out, weights=weights,
-                               keypoints=keypoints, calibrate=mode)
+        problem = make_problem(**inputs, calibrate=mode)
+    start = _start_name(init, seed)
     if span:  # a long clip: windows in bounded memory (the fault stage runs in each)
         if floor is not None or contact is not None:
             raise InputError("the feet stage (floor, contact) needs one batch solve: pass window=0", field="window")
-        return _package(problem, solve_windowed(problem, _start_name(init, seed), options, callback, window=span), auto)
+        result = _package(problem, solve_windowed(problem, start, options, callback, window=span), auto)
+        switch = None if default is None else broader_prior(default, "auto", result.extras)
+        if switch is None:
+            return result
+        problem = make_problem(**{**inputs, "weights": replace(weights, pose_prior_model=switch[0])}, calibrate=mode)
+        result = _package(problem, solve_windowed(problem, start, options, callback, window=span), auto)
+        result.extras.update(switch_extras(*switch))
+        return result
     if not off and floor is None and contact is None and default_feet(figure, tracks, keypoints):
         floor = contact = "auto"
-    q0 = initial_trajectory(problem, _start_name(init, seed))
-    if lengths_from_tracks and _lengths_measurable(auto and auto["projection"]) and (init is None or isinstance(init, str)):
-        inputs = {"figure": figure, "tracks": tracks, "camera": camera, "keyframes": keyframes, "fps_out": fps_out,
-                  "weights": weights, "keypoints": keypoints}
-        problem, q0 = _lengths_from_tracks(problem, q0, _start_name(init, seed), inputs)
-    res = solve(problem, q0, options, callback, active=problem.active, g0=problem.g0)
+    lengths = bool(lengths_from_tracks) and _lengths_measurable(auto and auto["projection"]) and \
+        (init is None or isinstance(init, str))
+    with warnings.catch_warnings(record=default is not None) as caught:
+        if default is not None:
+            warnings.simplefilter("always")
+        problem, res = _main_solve(problem, inputs, start, lengths, options, callback)
+    switch = None
+    if default is not None:  # decided on the main solve, before the stages that polish it
+        unfamiliar = unfamiliar_poses(problem, problem.figure.normalize(res.x))
+        switch = None if unfamiliar is None else broader_prior(default, "auto", unfamiliar.to_extras())
+        if switch is None:
+            for c in caught:
+                warnings.warn_explicit(c.message, c.category, c.filename, c.lineno, source=c.source)
+        else:  # solved again from its start with the broader prior (the first solve's warnings dropped)
+            inputs["weights"] = replace(weights, pose_prior_model=switch[0])
+            problem, res = _main_solve(make_problem(**inputs, calibrate=mode), inputs, start, lengths, options,
+                                       callback)
     res = turn_stage(problem, res, options, callback)  # the solution's fast turns wound (warm re-solves)
     res = fault_stage(problem, res, options, callback)  # left/right swaps repaired (warm re-solve), outliers
     faulted = res
     res, auto = settle_focal(problem, res, auto, options=options)  # an auto camera's focal: down its valley
     if res is not faulted:  # restarted down the focal's valley: the outliers of where it ended
         report_outliers(problem, res)
-    if floor is None and contact is None:
-        return _package(problem, res, auto)
-    problem, res, feet = solve_on_the_floor(
-        problem, res, "auto" if floor is None else floor, "auto" if contact is None else contact,
-        settings=contact_settings, options=options, callback=callback,
-    )
+    feet = None
+    if floor is not None or contact is not None:
+        problem, res, feet = solve_on_the_floor(
+            problem, res, "auto" if floor is None else floor, "auto" if contact is None else contact,
+            settings=contact_settings, options=options, callback=callback,
+        )
     result = _package(problem, res, auto)
-    result.extras.update(feet.to_extras())
+    if feet is not None:
+        result.extras.update(feet.to_extras())
+    if switch is not None:
+        result.extras.update(switch_extras(*switch))
     return result
 
 
@@ -358,25 +383,14 @@ def _may_broaden(figure, weights, init) -> bool:
             and prior_for(figure, "auto") in BROADER_PRIOR)
 
 
-def _broader(args: dict, default: str) -> Result:
-    """The solve with the ``default`` prior named; when it did not know most of the clip's
-    poses, the clip solved again from its start with the broader one (the first solve's
-    warnings dropped), its result saying so: ``extras["prior_model"]`` and
-    ``extras["prior_default_unfamiliar"]`` (the share of frames the default did not know), and
-    its summary."""
-    w = args["weights"] or Weights()
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        result = reconstruct(**{**args, "weights": replace(w, pose_prior_model=default)})
-    switch = broader_prior(default, "auto", result.extras)
-    if switch is None:
-        for c in caught:
-            warnings.warn_explicit(c.message, c.category, c.filename, c.lineno, source=c.source)
-        return result
-    name, share = switch
-    again = reconstruct(**{**args, "weights": replace(w, pose_prior_model=name)})
-    again.extras.update(switch_extras(name, share))
-    return again
+def _main_solve(problem: ReconstructionProblem, inputs: dict, start, lengths: bool, options, callback):
+    """The start (``start``; with ``lengths``, the limbs' lengths measured from the tracks,
+    :func:`_lengths_from_tracks`) and the batch solve from it, before the stages that polish
+    it. Returns ``(problem, res)``: the problem may be rebuilt around measured lengths."""
+    q0 = initial_trajectory(problem, start)
+    if lengths:
+        problem, q0 = _lengths_from_tracks(problem, q0, start, inputs)
+    return problem, solve(problem, q0, options, callback, active=problem.active, g0=problem.g0)
 
 
 def reconstruct_markers(
