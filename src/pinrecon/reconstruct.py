@@ -48,6 +48,7 @@ from .starts.camera_auto import (
     keyframe_focal_interval,
     settle_focal,
 )
+from .starts.mirrors import mirror_stage
 from .starts.turns import turn_stage
 from .tracks import Keyframe, Keyframes, Markers, Tracks
 from .unfamiliar import BROADER_PRIOR, SWITCH_SHARE, broader_prior, switch_extras, unfamiliar_poses
@@ -252,8 +253,9 @@ def reconstruct(
         solve's warnings are dropped), and only that solve goes on through the stages; the
         result says so (``extras["prior_model"]``, its summary). A clip solved in windows
         decides on the whole first result.
-    init : a (T_out, nq) start (a warm start), or the name of a start; ``"default"`` is
-        the rest-pose start. Default: the keyframe start when there are keyframes, else
+    init : a (T_out, nq) start (a warm start: its limbs' reflections are kept; the mirror
+        stage of :mod:`pinrecon.starts.mirrors` runs after cold starts with the broader pose
+        prior, :func:`_mirrors`), or the name of a start; ``"default"`` is the rest-pose start. Default: the keyframe start when there are keyframes, else
         the rest-pose start (the rest pose placed on the tracks and rigidly fitted).
     seed : the name of a start (:func:`pinrecon.starts.available_starts`: ``"auto"``,
         ``"rest"``, ``"keyframes"``, ``"planarity"``, and any registered with
@@ -326,12 +328,14 @@ def reconstruct(
     if span:  # a long clip: windows in bounded memory (the fault stage runs in each)
         if floor is not None or contact is not None:
             raise InputError("the feet stage (floor, contact) needs one batch solve: pass window=0", field="window")
-        result = _package(problem, solve_windowed(problem, start, options, callback, window=span), auto)
+        result = _package(problem, solve_windowed(problem, start, options, callback, window=span,
+                                                  mirrors=_mirrors(problem, init)), auto)
         switch = None if default is None else broader_prior(default, "auto", result.extras)
         if switch is None:
             return result
         problem = make_problem(**{**inputs, "weights": replace(weights, pose_prior_model=switch[0])}, calibrate=mode)
-        result = _package(problem, solve_windowed(problem, start, options, callback, window=span), auto)
+        result = _package(problem, solve_windowed(problem, start, options, callback, window=span,
+                                                  mirrors=_mirrors(problem, init)), auto)
         result.extras.update(switch_extras(*switch))
         return result
     if not off and floor is None and contact is None and default_feet(figure, tracks, keypoints):
@@ -354,6 +358,8 @@ def reconstruct(
             problem, res = _main_solve(make_problem(**inputs, calibrate=mode), inputs, start, lengths, options,
                                        callback)
     res = turn_stage(problem, res, options, callback)  # the solution's fast turns wound (warm re-solves)
+    if _mirrors(problem, init):  # the limbs' spans mirrored where the MAP cost falls
+        res = mirror_stage(problem, res, options, callback)
     res = fault_stage(problem, res, options, callback)  # left/right swaps repaired (warm re-solve), outliers
     faulted = res
     res, auto = settle_focal(problem, res, auto, options=options)  # an auto camera's focal: down its valley
@@ -381,6 +387,17 @@ def _may_broaden(figure, weights, init) -> bool:
     w = weights or Weights()
     return (w.pose_prior is not None and w.pose_prior_model == "auto" and (init is None or isinstance(init, str))
             and prior_for(figure, "auto") in BROADER_PRIOR)
+
+
+def _mirrors(problem, init) -> bool:
+    """Whether the mirror stage (:func:`pinrecon.starts.mirrors.mirror_stage`) runs: a cold
+    start (a warm start, the workbench's, keeps the reflections it is given) with the broader
+    pose prior in use (switched to, or named). Where the default prior knows the clip's poses
+    its limb scores hold: on bench_real's walk and run every span tried cost more (20 and 16
+    candidates, none kept) and only doubled the time; on the dance, whose poses it does not
+    know, the stage took PA-MPJPE without keyframes from 74.0 to 39.6 mm (bench/README.md,
+    "Mirrored limb spans")."""
+    return (init is None or isinstance(init, str)) and problem.weights.pose_prior_model in BROADER_PRIOR.values()
 
 
 def _main_solve(problem: ReconstructionProblem, inputs: dict, start, lengths: bool, options, callback):

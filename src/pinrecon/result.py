@@ -15,7 +15,8 @@ from .cameras import camera_from_dict
 from .contact import FOOT_EXTRAS, FootContact, foot_metrics
 
 #: extras of the hypotheses start, the fault stage and the pose prior's check, kept by :func:`load_result`
-FAULT_EXTRAS_PREFIXES = ("hypothesis_", "repaired_", "outlier_", "prior_", "solution_turns")
+FAULT_EXTRAS_PREFIXES = ("hypothesis_", "repaired_", "outlier_", "prior_", "solution_turns", "solution_mirrors",
+                         "mirror_chains")
 from .errors import InputError
 from .figure import Figure, parse_keypoint_entries
 from .io.results import load_result_npz, save_result_npz
@@ -153,6 +154,18 @@ class Result:
                 lines.append(f"trunk turned {int(k):+d} whole turn in frames {int(a)}-{int(b) - 1} ({a / self.fps:.2f}-"
                              f"{(b - 1) / self.fps:.2f} s), {gain:.0f} nats cheaper (a fast turn the {who} the "
                              f"wrong way round; {where})")
+        mirrors = np.asarray(x.get("solution_mirrors", np.zeros((0, 5))), float).reshape(-1, 5)
+        kept = mirrors[np.isfinite(mirrors[:, 4])]
+        if len(kept):
+            labels = [str(c) for c in np.asarray(x.get("mirror_chains", []), dtype=str)]
+            lines.append(f"limb spans mirrored after the solve: {len(kept)} of {len(mirrors)} tried, "
+                         f"{float(kept[:, 4].sum()):.0f} nats cheaper (pinrecon.starts.mirrors.mirror_stage)")
+            for c, _, a, b, gain in kept[np.argsort(-kept[:, 4])][:limit]:
+                name = labels[int(c)] if int(c) < len(labels) else str(int(c))
+                lines.append(f"  {name}: frames {int(a)}-{int(b) - 1} ({a / self.fps:.2f}-{(b - 1) / self.fps:.2f} s), "
+                             f"{gain:.0f} nats")
+            if len(kept) > limit:
+                lines.append(f"  ... and {len(kept) - limit} more")
         if "prior_default_unfamiliar" in x:
             lines.append(f"pose prior: {x['prior_model']!s} (the default did not know "
                          f"{100 * float(x['prior_default_unfamiliar']):.0f} % of the frames' poses: solved again "

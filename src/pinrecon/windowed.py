@@ -18,7 +18,8 @@ by window, in order:
 * global unknowns (a calibration) are solved once on a leading stretch of the clip
   (:data:`CALIBRATION_FRAMES`, or the first window if longer), then held in every window;
 * the turn stage (:func:`pinrecon.starts.turns.turn_stage`: the solution's fast turns
-  wound) and the fault stage (:func:`pinrecon.faults.fault_stage`: left/right swaps
+  wound), the mirror stage where asked (:func:`pinrecon.starts.mirrors.mirror_stage`: limb
+  spans mirrored where the MAP cost falls) and the fault stage (:func:`pinrecon.faults.fault_stage`: left/right swaps
   repaired, outliers) run in every window, as after the batch solve; their reports are
   merged, frames shifted to the clip's.
 
@@ -46,6 +47,7 @@ from .faults import FaultReport, fault_stage
 from .problem import make_problem
 from .solver import SolveResult, SolverOptions, solve
 from .starts import initial_trajectory
+from .starts.mirrors import Mirror, MirrorStage, mirror_stage
 from .starts.turns import Turn, TurnStage, turn_stage
 from .tracks import Keyframes
 
@@ -118,15 +120,16 @@ def window_plan(n_frames: int, window: int, overlap: int, unit: int = 1) -> list
 
 def solve_windowed(problem, start="auto", options: SolverOptions | None = None, callback=None, *,
                    window: int = DEFAULT_WINDOW, overlap: int | None = None, faults: bool = True,
-                   turns: bool = True) -> SolveResult:
+                   turns: bool = True, mirrors: bool = False) -> SolveResult:
     """Solve ``problem`` (a :class:`~pinrecon.problem.ReconstructionProblem` from
     :func:`~pinrecon.problem.make_problem`) window by window; see the module docstring.
 
     ``start``: a start's name (:func:`pinrecon.starts.initial_trajectory`) used in every
     window, or a (T, nq) start trajectory. ``overlap`` defaults to
-    :data:`DEFAULT_OVERLAP` (at most a third of the window). ``turns`` and ``faults``: the
-    turn and fault stages in every window (``problem.reports["turns"]`` and ``["faults"]``,
-    merged over the windows). Returns a
+    :data:`DEFAULT_OVERLAP` (at most a third of the window). ``turns``, ``mirrors`` and
+    ``faults``: the turn, mirror and fault stages in every window (``problem.reports["turns"]``,
+    ``["mirrors"]`` and ``["faults"]``, merged over the windows; :func:`pinrecon.reconstruct`
+    asks for the mirror stage where it would run it after a batch solve). Returns a
     :class:`~pinrecon.solver.SolveResult` for the whole clip: the stitched trajectory,
     the whole problem's cost there, the iterations of all windows, and the globals
     solved on the leading stretch.
@@ -152,7 +155,7 @@ def solve_windowed(problem, start="auto", options: SolverOptions | None = None, 
         g_solved = res.g if res.g is not None else wp.g0
         for key, rep in wp.reports.items():  # e.g. the hypotheses start's report
             problem.reports.setdefault(key, rep)
-    reports, iterations, statuses, fault_reports, tried = [], 0, [], [[] for _ in views], {}
+    reports, iterations, statuses, fault_reports, tried, mirrored = [], 0, [], [[] for _ in views], {}, {}
     user_window = getattr(callback, "window", None)
     done_until = -1  # the last frame written to X
     stopped = False
@@ -170,6 +173,11 @@ def solve_windowed(problem, start="auto", options: SolverOptions | None = None, 
             res = turn_stage(wp, res, options, callback)
             for t in getattr(wp.reports.pop("turns", None), "turns", []):  # a window tried twice (overlap): once
                 tried.setdefault((t.first + a, t.last + a), Turn(t.first + a, t.last + a, t.turns, t.gain))
+        if mirrors:
+            res = mirror_stage(wp, res, options, callback)
+            for m in getattr(wp.reports.pop("mirrors", None), "tried", []):
+                mirrored.setdefault((m.chain, m.mode, m.first + a, m.last + a),
+                                    Mirror(m.chain, m.mode, m.first + a, m.last + a, m.kept, m.gain))
         if faults:
             res = fault_stage(wp, res, options, callback)
             for v, name in enumerate(["faults"] + [f"faults_{n}" for n in wp.camera_names[1:]]):
@@ -193,6 +201,8 @@ def solve_windowed(problem, start="auto", options: SolverOptions | None = None, 
             break
     if tried:  # the windows in which the turn stage tried a winding
         problem.reports["turns"] = TurnStage(list(tried.values()))
+    if mirrored:
+        problem.reports["mirrors"] = MirrorStage(list(mirrored.values()))
     for v, items in enumerate(fault_reports):
         if items:
             key = "faults" if v == 0 else f"faults_{problem.camera_names[v]}"

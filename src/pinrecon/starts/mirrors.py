@@ -1,0 +1,191 @@
+"""The solved limbs mirrored span by span, kept where the whole MAP cost falls.
+
+The multi-hypothesis start (:mod:`.hypotheses`) chooses each limb's depth reflection from
+scores it can afford per frame: each state's inverse kinematics on a base trunk, the other
+limbs held. The batch solve then only refines the basin it starts in. On the bench_real
+dance (bench/README.md, "Mirrored limb spans") the truth's arms put into the solved motion
+and solved warm end 927 nats below the solution at 45 degrees with first and last keyframes
+(PA-MPJPE 50.2 -> 26.1 mm, flipped segments 16.9 -> 8.1 %); its legs or its trunk, about 45:
+the MAP cost knows the arms' reflections better than the search found them.
+
+This stage asks the whole cost directly. A limb segment can change its reflection without a
+jump only where it crosses the image plane (its end's two points on the camera ray meet), so
+the candidate spans of a segment are the runs of frames between the solution's crossings
+(:func:`crossing_spans`). For every limb chain (:func:`~.limbs.limb_chains`: hip-knee-ankle,
+shoulder-elbow-wrist) and every such span of its first segment, the chain is mirrored there
+with the end on the same side of the middle point (``"first"``) or the other (``"both"``);
+for every span of its second segment, the end alone (``"end"``; :func:`mirrored_points`). A
+candidate is pulled to its mirrored points by 3D rows while every other tracked point is held
+where it is (``sigma_m``, ``pull_iterations`` Gauss-Newton steps on the whole problem plus
+those rows: pulled alone, the dance's body moved 60 cm and its arm stayed flipped), released
+(``trial_iterations`` steps on the problem alone), and kept when it saves more than
+``min_gain`` nats (:data:`MIN_GAIN`); later candidates start from what was kept, and the last
+kept is solved to the end with the global unknowns free. The candidates are judged at the
+solution's global unknowns (lengths, focal length), held: free, the mirrors traded against an
+auto camera's focal length, and Pose2Sim's real trial went from 86.8 to 128.9 mm (held: 85.8).
+One view only (several cameras see depth); :func:`pinrecon.reconstruct` runs it after the turn
+stage on a cold start (a warm start, the workbench's, keeps the reflections it is given).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from itertools import pairwise
+
+import numpy as np
+
+from ..rows import Points3D
+from ..solver import SolverOptions, globals_of, solve
+from .limbs import camera_rays, limb_chains, sphere_ray
+
+#: nats a mirrored span must save to be kept (a likelihood ratio of e^10): with the clip's
+#: own skeleton and no learned pose prior (bench_real's lab run, orthographic, where a
+#: mirrored limb has exactly the same image) four wrong spans saved 1.2-7.1 nats and took
+#: the flipped segments from 0 to 10.3 %; the dance's spans that helped saved 20-485
+MIN_GAIN = 10.0
+
+#: the candidates' modes (:func:`mirrored_points`), indexed in ``extras["solution_mirrors"]``
+MODES = ("first", "both", "end")
+
+__all__ = ["MIN_GAIN", "MODES", "Mirror", "MirrorStage", "crossing_spans", "mirror_stage", "mirrored_points"]
+
+
+@dataclass(frozen=True)
+class Mirror:
+    """A candidate tried: chain label, ``mode`` (``"both"`` or ``"end"``), frames
+    ``[first, last)``, whether it was kept, and the nats it saved (negative: it cost more)."""
+
+    chain: str
+    mode: str
+    first: int
+    last: int
+    kept: bool
+    gain: float
+
+
+@dataclass
+class MirrorStage:
+    """The candidates :func:`mirror_stage` tried; ``to_extras`` gives
+    ``Result.extras["solution_mirrors"]`` (M, 5): chain index (into ``mirror_chains``),
+    mode (0 both, 1 end), first frame, frame after the last, nats saved (NaN: not kept) and
+    ``"mirror_chains"``, the chains' labels."""
+
+    tried: list
+
+    def to_extras(self) -> dict:
+        labels = sorted({m.chain for m in self.tried})
+        rows = [[labels.index(m.chain), MODES.index(m.mode), m.first, m.last, m.gain if m.kept else np.nan]
+                for m in self.tried]
+        return {"solution_mirrors": np.array(rows, float).reshape(-1, 5), "mirror_chains": np.array(labels, dtype=str)}
+
+
+def crossing_spans(ratio, min_len: int, min_depth: float, near: float = 0.0) -> list[tuple[int, int]]:
+    """Runs ``[first, last)`` of frames between a segment's crossings of the image plane:
+    the sign changes of its depth ``ratio`` (its end's depth along the line of sight minus
+    its start's, over its length) and, with ``near``, the local minima of ``|ratio|``
+    below it (where it comes close enough to turn over); at least ``min_len`` frames long
+    and reaching ``min_depth`` somewhere (a segment that stays near the image plane looks
+    the same either way)."""
+    r = np.asarray(ratio, float)
+    if not len(r):
+        return []
+    s = np.sign(r)
+    cut = set((np.flatnonzero(s[1:] != s[:-1]) + 1).tolist())
+    if near > 0 and len(r) > 2:
+        m = np.abs(r)
+        dip = (m[1:-1] <= m[:-2]) & (m[1:-1] <= m[2:]) & (m[1:-1] < near)
+        cut |= set((np.flatnonzero(dip) + 1).tolist())
+    edges = np.array(sorted(cut | {0, len(r)}))
+    return [(int(a), int(b)) for a, b in pairwise(edges)
+            if b - a >= min_len and np.max(np.abs(r[a:b])) >= min_depth]
+
+
+def mirrored_points(camera, P, mode: str) -> np.ndarray:
+    """(F, n-1, 3) a chain's points ``P`` (F, n, 3) after ``1:`` mirrored in depth: the
+    other point of each camera ray at the same distance from the previous point. ``"first"``:
+    the middle point mirrored about the start, the end placed on its ray at its length from
+    the new middle point, on the same side of it in depth as before; ``"both"``: the same,
+    the end on the other side (both segments' depths reversed); ``"end"``: the end alone
+    mirrored about the middle point."""
+    P = np.asarray(P, float)
+    out = P[:, 1:].copy()
+
+    def other(p0, p):
+        o, d = camera_rays(camera, camera.project(p))
+        near, far, _ = sphere_ray(p0, o, d, np.linalg.norm(p - p0, axis=-1))
+        swap = np.linalg.norm(near - p, axis=-1) > np.linalg.norm(far - p, axis=-1)
+        return np.where(swap[:, None], near, far), near, far
+
+    if mode == "end":
+        out[:, -1] = other(P[:, -2], P[:, -1])[0]
+        return out
+    out[:, 0] = other(P[:, 0], P[:, 1])[0]
+    if P.shape[1] > 2:
+        o, d = camera_rays(camera, camera.project(P[:, 2]))
+        near, far, _ = sphere_ray(out[:, 0], o, d, np.linalg.norm(P[:, 2] - P[:, 1], axis=-1))
+        side = camera.depth(P[:, 2]) >= camera.depth(P[:, 1])
+        if mode == "both":
+            side = ~side
+        far_side = camera.depth(far) >= camera.depth(out[:, 0])
+        out[:, 1] = np.where((far_side == side)[:, None], far, near)
+    return out
+
+
+def mirror_stage(problem, res, options: SolverOptions | None = None, callback=None, *, min_span_s: float = 0.3,
+                 min_depth: float = 0.3, sigma_m: float = 0.02, pull_iterations: int = 15,
+                 trial_iterations: int = 40, min_gain: float = MIN_GAIN, passes: int = 1, near: float = 0.0):
+    """The solved motion ``res`` with its limbs' spans mirrored where that lowers the MAP
+    cost (module docstring); ``passes`` rounds at most, a round after one that kept
+    nothing is not run. Returns the last kept candidate solved to the end with ``options``
+    (``res`` itself when none is kept, when the problem has several views or no limb
+    chains, or when the user stopped the solve); the candidates tried go to
+    ``problem.reports["mirrors"]`` (:class:`MirrorStage`)."""
+    if res.status == "stopped by callback" or len(getattr(problem, "views", ())) != 1:
+        return res
+    fig = problem.figure
+    names = list(problem.tracks.names)
+    chains = [c for p in limb_chains(fig, names) for c in p]
+    if not chains:
+        return res
+    options = options or SolverOptions()
+    trial = replace(options, max_iterations=min(options.max_iterations, trial_iterations))
+    pull_options = replace(options, max_iterations=min(options.max_iterations, pull_iterations))
+    min_len = max(2, round(min_span_s * float(problem.fps or 30.0)))
+    # every tracked point is held where it is, the chain's ends pulled to their mirrors: the
+    # limb turns over, not the body round it
+    pinned = np.unique(np.concatenate([np.asarray(problem.measurement.keypoints, int)] + [c.kp for c in chains]))
+    cur, cost, tried = res, float(res.cost), []
+    for _ in range(max(1, int(passes))):
+        n_kept = sum(m.kept for m in tried)
+        for chain in chains:
+            for mode in MODES if chain.n_segments > 1 else ("first",):
+                seg = 1 if mode == "end" else 0
+                K = problem.keypoints(fig.normalize(cur.x), globals_of(cur))
+                camera = problem.cameras_at(globals_of(cur))[0]
+                p0, p1 = K[:, chain.kp[seg]], K[:, chain.kp[seg + 1]]
+                ratio = (camera.depth(p1) - camera.depth(p0)) / np.maximum(np.linalg.norm(p1 - p0, axis=-1), 1e-9)
+                for a, b in crossing_spans(ratio, min_len, min_depth, near):
+                    g = globals_of(cur)
+                    camera = problem.cameras_at(g)[0]
+                    K = problem.keypoints(fig.normalize(cur.x), g)
+                    targets = K[a:b][:, pinned].copy()
+                    moved = mirrored_points(camera, K[a:b][:, chain.kp], mode)
+                    for j, k in enumerate(chain.kp[1:]):
+                        targets[:, int(np.searchsorted(pinned, k))] = moved[:, j]
+                    pull = problem.with_rows([Points3D(np.arange(a, b), pinned, targets, sigma_m, name="mirror")])
+                    held = None if g is None else np.zeros(len(g), bool)  # a mirror judged at the solution's globals
+                    pulled = solve(pull, cur.x, pull_options, callback, active=problem.active, g0=g, active_globals=held)
+                    cand = solve(problem, pulled.x, trial, callback, active=problem.active, g0=g, active_globals=held)
+                    gain = cost - float(cand.cost)
+                    keep = gain > min_gain and cand.status != "stopped by callback"
+                    tried.append(Mirror(chain.label, mode, a, b, bool(keep), float(gain)))
+                    if keep:
+                        cur, cost = cand, float(cand.cost)
+        if sum(m.kept for m in tried) == n_kept:
+            break
+    reports = getattr(problem, "reports", None)
+    if reports is not None:
+        reports["mirrors"] = MirrorStage(tried)
+    if not any(m.kept for m in tried):
+        return res
+    return solve(problem, cur.x, options, callback, active=problem.active, g0=globals_of(cur))

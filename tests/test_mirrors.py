@@ -1,0 +1,146 @@
+"""Limb spans mirrored against the whole MAP cost (pinrecon.starts.mirrors), against answers
+known here: the spans from hand-made depth ratios, the mirrored points from the camera ray's
+quadratic solved here, and a solved motion whose arm was put in its mirror over a span."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+import pinrecon as pr
+from pinrecon import metrics
+from pinrecon.problem import make_problem
+from pinrecon.rows import Points3D
+from pinrecon.solver import SolverOptions, solve
+from pinrecon.starts.mirrors import MODES, crossing_spans, mirror_stage, mirrored_points
+from pinrecon.synthetic import (
+    COCO_BODY_FROM_CMU,
+    human_walk,
+    perspective_side_camera,
+    project_tracks,
+)
+
+NAMES = list(COCO_BODY_FROM_CMU)
+
+
+def _other_on_ray(cam, p0, p, length=None, side=None):
+    """The point of the camera ray through ``p`` at ``length`` (default |p - p0|) from
+    ``p0``: the root of |C + t d - p0|^2 = L^2 other than ``p``'s (or, given ``side``, the
+    one whose depth minus p0's has that sign), solved here."""
+    C = -np.asarray(cam.R).T @ np.asarray(cam.t)
+    d = p - C
+    d /= np.linalg.norm(d, axis=-1, keepdims=True)
+    L = np.linalg.norm(p - p0, axis=-1) if length is None else length
+    w = C - p0
+    b = np.sum(w * d, -1)
+    disc = np.sqrt(np.maximum(b * b - (np.sum(w * w, -1) - L * L), 0.0))
+    r1, r2 = C + (-b - disc)[:, None] * d, C + (-b + disc)[:, None] * d
+    if side is None:
+        far1 = np.linalg.norm(r1 - p, axis=-1) > np.linalg.norm(r2 - p, axis=-1)
+        return np.where(far1[:, None], r1, r2)
+    s1 = np.sign(cam.depth(r1) - cam.depth(p0))
+    return np.where((s1 == side)[:, None], r1, r2)
+
+
+def test_crossing_spans_are_the_runs_between_sign_changes():
+    r = np.r_[np.full(10, 0.5), np.full(12, -0.6), np.full(8, 0.05), np.full(3, -0.9), np.full(9, 0.4)]
+    assert crossing_spans(r, min_len=5, min_depth=0.3) == [(0, 10), (10, 22), (33, 42)]  # 0.05: too flat; 3: too short
+    assert crossing_spans(r, min_len=2, min_depth=0.3) == [(0, 10), (10, 22), (30, 33), (33, 42)]
+    # a dip that does not cross cuts only when asked
+    dip = np.r_[np.linspace(0.8, 0.1, 10), np.linspace(0.15, 0.8, 10)]
+    assert crossing_spans(dip, 3, 0.3) == [(0, 20)]
+    assert crossing_spans(dip, 3, 0.3, near=0.2) == [(0, 9), (9, 20)]
+    assert crossing_spans(np.zeros(0), 3, 0.3) == []
+
+
+def test_mirrored_points_stay_on_their_rays_at_their_lengths():
+    cam = pr.Perspective.look_at([0.0, 1.0, 5.0], [0.0, 1.0, 0.0], f_px=1000.0, center=(640.0, 360.0))
+    rng = np.random.default_rng(0)
+    S = np.array([0.0, 1.4, 0.0]) + rng.normal(0, 0.05, (20, 3))
+    E = S + np.array([0.1, -0.2, 0.25]) + rng.normal(0, 0.03, (20, 3))  # the elbow towards the camera
+    W = E + np.array([0.05, -0.1, 0.2]) + rng.normal(0, 0.03, (20, 3))
+    P = np.stack([S, E, W], 1)
+    L1, L2 = np.linalg.norm(E - S, axis=-1), np.linalg.norm(W - E, axis=-1)
+    s1 = np.sign(cam.depth(E) - cam.depth(S))
+    s2 = np.sign(cam.depth(W) - cam.depth(E))
+    E2 = _other_on_ray(cam, S, E)
+    np.testing.assert_allclose(np.sign(cam.depth(E2) - cam.depth(S)), -s1)
+    for mode, e, w in (("first", E2, _other_on_ray(cam, E2, W, L2, s2)),
+                       ("both", E2, _other_on_ray(cam, E2, W, L2, -s2)),
+                       ("end", E, _other_on_ray(cam, E, W))):
+        out = mirrored_points(cam, P, mode)
+        np.testing.assert_allclose(out[:, 0], e, atol=1e-9)
+        np.testing.assert_allclose(out[:, 1], w, atol=1e-9)
+        np.testing.assert_allclose(cam.project(out[:, 1]), cam.project(W), atol=1e-6)  # same pixel
+        np.testing.assert_allclose(np.linalg.norm(out[:, 1] - out[:, 0], axis=-1), L2, atol=1e-9)
+        np.testing.assert_allclose(np.linalg.norm(out[:, 0] - S, axis=-1), L1, atol=1e-9)
+    assert MODES == ("first", "both", "end")
+
+
+@pytest.fixture(scope="module")
+def arm_case():
+    """The human walking with its left arm raised before it (shoulder_Z -1.1 rad, so the arm
+    has depth in a view 50 degrees from side-on), 1 px noise; the problem, the truth, and
+    the solve from a start whose left arm is mirrored (both segments) in frames 15-44."""
+    fig = pr.Figure.human()
+    _, Q = human_walk(60, 30.0)
+    qi = fig.model.idx_qs[fig.model.getJointId("left_shoulder_Z")]
+    Q[:, qi] = -1.1 + 0.1 * np.sin(np.arange(60) / 6.0)
+    cam = perspective_side_camera(Q, 50.0, distance_m=5.0)
+    tracks = project_tracks(fig, Q, cam, NAMES, fps=30.0, noise_px=1.0, seed=3)
+    problem = make_problem(fig, tracks, cam)
+    options = SolverOptions(max_iterations=40, ftol=1e-4)
+    kp = fig.keypoint_index(["left_shoulder", "left_elbow", "left_wrist"])
+    K = fig.keypoints(Q)
+    a, b = 15, 45
+    S, E, W = K[a:b, kp[0]], K[a:b, kp[1]], K[a:b, kp[2]]
+    E2 = _other_on_ray(cam, S, E)
+    W2 = _other_on_ray(cam, E2, W, np.linalg.norm(W - E, axis=-1), -np.sign(cam.depth(W) - cam.depth(E)))
+    pinned = fig.keypoint_index(NAMES)
+    targets = K[a:b][:, pinned].copy()
+    targets[:, NAMES.index("left_elbow")], targets[:, NAMES.index("left_wrist")] = E2, W2
+    pull = problem.with_rows([Points3D(np.arange(a, b), pinned, targets, 0.01)])
+    start = solve(pull, fig.clamp(Q, 1e-3), options, active=problem.active)
+    wrong = solve(problem, start.x, options, active=problem.active)
+    truth = solve(problem, fig.clamp(Q, 1e-3), SolverOptions(), active=problem.active)  # to convergence
+    return fig, Q, cam, problem, options, wrong, truth, (a, b)
+
+
+def _arm_flips(fig, Q_est, Q_true, cam, span):
+    kp = fig.keypoint_index(["left_shoulder", "left_elbow", "left_wrist"])
+    flip, count = metrics.flipped_segments(fig.keypoints(Q_est)[:, kp], fig.keypoints(Q_true)[:, kp], cam,
+                                           [(0, 1), (1, 2)])
+    a, b = span
+    return flip[a:b].sum(0), count[a:b].sum(0)
+
+
+def test_a_mirrored_arm_span_is_turned_back(arm_case):
+    """The stage finds the truth's basin for the upper arm, and ends at a cost at or below
+    the solve started from the truth (the forearm's reflection is the prior's to decide:
+    here its mirror is the cheaper, 1060 against 1080 nats)."""
+    fig, Q, cam, problem, options, wrong, truth, span = arm_case
+    flips, counted = _arm_flips(fig, fig.normalize(wrong.x), Q, cam, span)
+    assert counted.min() >= 20 and flips[0] >= 0.8 * counted[0]  # the solve alone keeps the upper arm mirrored
+    out = mirror_stage(problem, wrong, options)
+    flips, counted = _arm_flips(fig, fig.normalize(out.x), Q, cam, span)
+    assert flips[0] == 0
+    assert out.cost < wrong.cost - 200.0 and out.cost <= truth.cost + 1.0
+    ex = problem.reports["mirrors"].to_extras()
+    rows, labels = ex["solution_mirrors"], list(ex["mirror_chains"])
+    kept = rows[np.isfinite(rows[:, 4])]
+    arm = labels.index("left_shoulder-left_elbow-left_wrist")
+    assert any(int(c) == arm and a <= span[0] + 5 and b >= span[1] - 5 for c, _, a, b, _ in kept)
+    assert np.all(kept[:, 4] > 1.0) and np.all(np.isnan(rows[~np.isfinite(rows[:, 4]), 4]))
+    lines = pr.Result.faults_summary(SimpleNamespace(extras=ex, fps=30.0, figure=None))
+    assert any(s.startswith("limb spans mirrored after the solve") for s in lines)
+
+
+def test_never_costlier_and_a_stopped_solve_is_left_as_it_is(arm_case):
+    *_, problem, options, wrong, truth, _ = arm_case
+    out = mirror_stage(problem, truth, options)
+    assert out.cost <= truth.cost  # the truth is not always the MAP: a cheaper basin may be kept, never a dearer one
+    stopped = replace(wrong, status="stopped by callback")
+    assert mirror_stage(problem, stopped, options) is stopped
