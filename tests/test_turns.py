@@ -43,6 +43,16 @@ def _spun(Q, first, last, turns, up=(0.0, 1.0, 0.0)):
     return Q
 
 
+def _walk_problem(T):
+    """The human walking T frames at 30 fps, seen 50 degrees from side-on at 5 m with 1 px
+    noise: the figure, the truth, the camera, the problem and short solver options."""
+    fig = pr.Figure.human()
+    _, Q = human_walk(T, 30.0)
+    cam = perspective_side_camera(Q, 50.0, distance_m=5.0)
+    tracks = project_tracks(fig, Q, cam, NAMES, fps=30.0, noise_px=1.0, seed=3)
+    return fig, Q, cam, make_problem(fig, tracks, cam), SolverOptions(max_iterations=40, ftol=1e-4)
+
+
 def _angle_deg(Qa, Qb):
     return np.degrees((Rotation.from_quat(Qa[:, 3:7]).inv() * Rotation.from_quat(Qb[:, 3:7])).magnitude())
 
@@ -159,12 +169,7 @@ def test_the_solved_motion_is_wound_too():
 
     from pinrecon.starts.turns import turn_stage
 
-    fig = pr.Figure.human()
-    _, Q = human_walk(60, 30.0)
-    cam = perspective_side_camera(Q, 50.0, distance_m=5.0)
-    tracks = project_tracks(fig, Q, cam, NAMES, fps=30.0, noise_px=1.0, seed=3)
-    problem = make_problem(fig, tracks, cam)
-    options = SolverOptions(max_iterations=40, ftol=1e-4)
+    fig, Q, _, problem, options = _walk_problem(60)
     spun = solve(problem, fig.clamp(_spun(Q, 25, 31, 1), 1e-3), options, active=problem.active)
     assert _angle_deg(fig.normalize(spun.x), Q).max() > 90.0  # the solve alone keeps (most of) the turn
     # by default only windows that turn back against their net turn are tried (a turn too few
@@ -191,15 +196,10 @@ def test_each_window_of_a_long_clip_is_wound_too(monkeypatch):
     wound out, and the report names it in the clip's frames, not the window's."""
     from functools import partial
 
-    import pinrecon.windowed as windowed
+    from pinrecon import windowed
     from pinrecon.starts.turns import turn_stage
 
-    fig = pr.Figure.human()
-    _, Q = human_walk(120, 30.0)
-    cam = perspective_side_camera(Q, 50.0, distance_m=5.0)
-    tracks = project_tracks(fig, Q, cam, NAMES, fps=30.0, noise_px=1.0, seed=3)
-    problem = make_problem(fig, tracks, cam)
-    options = SolverOptions(max_iterations=40, ftol=1e-4)
+    fig, Q, _, problem, options = _walk_problem(120)
     start = fig.clamp(_spun(Q, 90, 96, 1), 1e-3)  # windows (0, 79) and (40, 119): the turn in the second only
     # every fast window tried: the default's filter (tested above) leaves a one-way turn to the start
     monkeypatch.setattr(windowed, "turn_stage", partial(turn_stage, min_back_deg=None))
