@@ -255,8 +255,9 @@ def reconstruct(
         decides on the whole first result.
     init : a (T_out, nq) start (a warm start: its limbs' reflections are kept; the mirror
         stage of :mod:`pinrecon.starts.mirrors` runs after cold starts with the broader pose
-        prior, :func:`_mirrors`), or the name of a start; ``"default"`` is the rest-pose start. Default: the keyframe start when there are keyframes, else
-        the rest-pose start (the rest pose placed on the tracks and rigidly fitted).
+        prior, :func:`_mirrors`), or the name of a start; ``"default"`` is the rest-pose
+        start. Default: the keyframe start when there are keyframes, else the rest-pose start
+        (the rest pose placed on the tracks and rigidly fitted).
     seed : the name of a start (:func:`pinrecon.starts.available_starts`: ``"auto"``,
         ``"rest"``, ``"keyframes"``, ``"planarity"``, and any registered with
         :func:`pinrecon.starts.register_start`); overrides ``init``.
@@ -340,8 +341,7 @@ def reconstruct(
         return result
     if not off and floor is None and contact is None and default_feet(figure, tracks, keypoints):
         floor = contact = "auto"
-    lengths = bool(lengths_from_tracks) and _lengths_measurable(auto and auto["projection"]) and \
-        (init is None or isinstance(init, str))
+    lengths = bool(lengths_from_tracks) and _lengths_measurable(auto and auto["projection"]) and _cold_start(init)
     with warnings.catch_warnings(record=default is not None) as caught:
         if default is not None:
             warnings.simplefilter("always")
@@ -385,7 +385,7 @@ def _may_broaden(figure, weights, init) -> bool:
     start (``init`` a start's name or none: a warm start, such as the workbench's, keeps its
     prior)."""
     w = weights or Weights()
-    return (w.pose_prior is not None and w.pose_prior_model == "auto" and (init is None or isinstance(init, str))
+    return (w.pose_prior is not None and w.pose_prior_model == "auto" and _cold_start(init)
             and prior_for(figure, "auto") in BROADER_PRIOR)
 
 
@@ -395,9 +395,14 @@ def _mirrors(problem, init) -> bool:
     pose prior in use (switched to, or named). Where the default prior knows the clip's poses
     its limb scores hold: on bench_real's walk and run every span tried cost more (20 and 16
     candidates, none kept) and only doubled the time; on the dance, whose poses it does not
-    know, the stage took PA-MPJPE without keyframes from 74.0 to 39.6 mm (bench/README.md,
+    know, the stage took PA-MPJPE without keyframes from 74.0 to 60.3 mm (bench/README.md,
     "Mirrored limb spans")."""
-    return (init is None or isinstance(init, str)) and problem.weights.pose_prior_model in BROADER_PRIOR.values()
+    return _cold_start(init) and problem.weights.pose_prior_model in BROADER_PRIOR.values()
+
+
+def _cold_start(init) -> bool:
+    """Whether ``init`` asks for a cold start (none, or a start's name), not a warm one."""
+    return init is None or isinstance(init, str)
 
 
 def _main_solve(problem: ReconstructionProblem, inputs: dict, start, lengths: bool, options, callback):

@@ -52,7 +52,7 @@ __all__ = ["MIN_GAIN", "MODES", "Mirror", "MirrorStage", "crossing_spans", "mirr
 
 @dataclass(frozen=True)
 class Mirror:
-    """A candidate tried: chain label, ``mode`` (``"both"`` or ``"end"``), frames
+    """A candidate tried: chain label, ``mode`` (one of :data:`MODES`), frames
     ``[first, last)``, whether it was kept, and the nats it saved (negative: it cost more)."""
 
     chain: str
@@ -67,7 +67,7 @@ class Mirror:
 class MirrorStage:
     """The candidates :func:`mirror_stage` tried; ``to_extras`` gives
     ``Result.extras["solution_mirrors"]`` (M, 5): chain index (into ``mirror_chains``),
-    mode (0 both, 1 end), first frame, frame after the last, nats saved (NaN: not kept) and
+    mode (its index in :data:`MODES`), first frame, frame after the last, nats saved (NaN: not kept) and
     ``"mirror_chains"``, the chains' labels."""
 
     tried: list
@@ -131,6 +131,12 @@ def mirrored_points(camera, P, mode: str) -> np.ndarray:
     return out
 
 
+def _seen(problem, res):
+    """A solve's global unknowns, its (first) camera at them and its keypoints (T, K, 3)."""
+    g = globals_of(res)
+    return g, problem.cameras_at(g)[0], problem.keypoints(problem.figure.normalize(res.x), g)
+
+
 def mirror_stage(problem, res, options: SolverOptions | None = None, callback=None, *, min_span_s: float = 0.3,
                  min_depth: float = 0.3, sigma_m: float = 0.02, pull_iterations: int = 15,
                  trial_iterations: int = 40, min_gain: float = MIN_GAIN, passes: int = 1, near: float = 0.0):
@@ -157,17 +163,13 @@ def mirror_stage(problem, res, options: SolverOptions | None = None, callback=No
     cur, cost, tried = res, float(res.cost), []
     for _ in range(max(1, int(passes))):
         n_kept = sum(m.kept for m in tried)
+        g, camera, K = _seen(problem, cur)
         for chain in chains:
             for mode in MODES if chain.n_segments > 1 else ("first",):
                 seg = 1 if mode == "end" else 0
-                K = problem.keypoints(fig.normalize(cur.x), globals_of(cur))
-                camera = problem.cameras_at(globals_of(cur))[0]
                 p0, p1 = K[:, chain.kp[seg]], K[:, chain.kp[seg + 1]]
                 ratio = (camera.depth(p1) - camera.depth(p0)) / np.maximum(np.linalg.norm(p1 - p0, axis=-1), 1e-9)
                 for a, b in crossing_spans(ratio, min_len, min_depth, near):
-                    g = globals_of(cur)
-                    camera = problem.cameras_at(g)[0]
-                    K = problem.keypoints(fig.normalize(cur.x), g)
                     targets = K[a:b][:, pinned].copy()
                     moved = mirrored_points(camera, K[a:b][:, chain.kp], mode)
                     for j, k in enumerate(chain.kp[1:]):
@@ -181,6 +183,7 @@ def mirror_stage(problem, res, options: SolverOptions | None = None, callback=No
                     tried.append(Mirror(chain.label, mode, a, b, bool(keep), float(gain)))
                     if keep:
                         cur, cost = cand, float(cand.cost)
+                        g, camera, K = _seen(problem, cur)
         if sum(m.kept for m in tried) == n_kept:
             break
     reports = getattr(problem, "reports", None)
