@@ -132,6 +132,7 @@ def test_a_mirrored_arm_span_is_turned_back(arm_case):
     rows, labels = ex["solution_mirrors"], list(ex["mirror_chains"])
     kept = rows[np.isfinite(rows[:, 4])]
     arm = labels.index("left_shoulder-left_elbow-left_wrist")
+    assert labels and not any("ankle" in s for s in labels)  # the legs are left to the start
     assert any(int(c) == arm and a <= span[0] + 5 and b >= span[1] - 5 for c, _, a, b, _ in kept)
     assert np.all(kept[:, 4] > 1.0) and np.all(np.isnan(rows[~np.isfinite(rows[:, 4]), 4]))
     lines = pr.Result.faults_summary(SimpleNamespace(extras=ex, fps=30.0, figure=None))
