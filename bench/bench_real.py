@@ -49,7 +49,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import pinrecon as pr
 from pinrecon import metrics
-from pinrecon.result import hypothesis_spans
+from pinrecon.result import hypothesis_spans, mirror_uncertain
 from pinrecon.synthetic import (
     COCO_BODY_FROM_CMU,
     body_keypoints,
@@ -91,19 +91,23 @@ def flagged(extras, P_est, P_true, camera, names):
     """How the result's own warnings cover its errors: (share of the flipped limb-segment
     frames that fall in a frame the result flags, share of frames flagged), percent. A
     segment's frame is flagged when its limb's reflection span is uncertain (the hypothesis
-    search) or the pose there is unlike the pose prior's clips (``pinrecon.unfamiliar``)."""
+    search, or a mirror the mirror stage found as cheap) or the pose there is unlike the pose
+    prior's clips (``pinrecon.unfamiliar``)."""
     T = len(P_true)
     unf = np.zeros(T, bool)
     for a, b in np.asarray(extras.get("prior_unfamiliar_spans", np.zeros((0, 2))), int).reshape(-1, 2):
         unf[a:b] = True
     chains, spans, thr = hypothesis_spans(extras)
+    labels, ties, _ = mirror_uncertain(extras)
+    unsure_spans = [(chains[int(c)], int(s0), int(s1)) for c, s0, s1, _, gap in spans if gap < thr]
+    unsure_spans += [(labels[int(c)], int(s0), int(s1)) for c, s0, s1, _ in ties]
     flip, _ = metrics.flipped_segments(P_est, P_true, camera, [(names.index(a), names.index(b)) for a, b in SEGMENTS])
     any_flag, n_hit = unf.copy(), 0
     for k, (a, b) in enumerate(SEGMENTS):
         unsure = unf.copy()
-        for c, s0, s1, _, gap in spans:
-            if gap < thr and {a, b} <= set(chains[int(c)].split("-")):
-                unsure[int(s0):int(s1)] = True
+        for chain, s0, s1 in unsure_spans:
+            if {a, b} <= set(chain.split("-")):
+                unsure[s0:s1] = True
         any_flag |= unsure
         n_hit += int((flip[:, k] & unsure).sum())
     return 100.0 * n_hit / max(int(flip.sum()), 1), 100.0 * float(any_flag.mean())

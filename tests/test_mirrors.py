@@ -12,7 +12,7 @@ import pytest
 
 import pinrecon as pr
 from pinrecon import metrics
-from pinrecon.problem import make_problem
+from pinrecon.problem import Weights, make_problem
 from pinrecon.rows import Points3D
 from pinrecon.solver import SolverOptions, solve
 from pinrecon.starts.mirrors import MODES, crossing_spans, mirror_stage, mirrored_points
@@ -21,6 +21,7 @@ from pinrecon.synthetic import (
     human_walk,
     perspective_side_camera,
     project_tracks,
+    side_camera,
 )
 
 NAMES = list(COCO_BODY_FROM_CMU)
@@ -143,5 +144,44 @@ def test_never_costlier_and_a_stopped_solve_is_left_as_it_is(arm_case):
     *_, problem, options, wrong, truth, _ = arm_case
     out = mirror_stage(problem, truth, options)
     assert out.cost <= truth.cost  # the truth is not always the MAP: a cheaper basin may be kept, never a dearer one
+    # seen in perspective with the pose prior, every mirror of the truth costs 18 nats or more, or slides back
+    assert problem.reports["mirrors"].uncertain() == []
+    assert len(problem.reports["mirrors"].to_extras()["mirror_uncertain"]) == 0
     stopped = replace(wrong, status="stopped by callback")
     assert mirror_stage(problem, stopped, options) is stopped
+
+
+def test_a_mirror_with_the_same_image_is_reported_uncertain():
+    """Seen by an orthographic camera, a forearm mirrored in depth about its elbow has
+    exactly the same image (the upper arm's roll keeps the elbow's bend), and without a pose
+    prior only the smoothing at the span's ends could tell the two apart: the stage must
+    not keep either, and must report the span as uncertain. Mirroring the upper arm alone
+    bends the elbow backwards (beyond its limit): that one is decided, not uncertain."""
+    fig = pr.Figure.human()
+    _, Q = human_walk(60, 30.0)
+    qi = fig.model.idx_qs[fig.model.getJointId("left_shoulder_Z")]
+    Q[:, qi] = -1.1 + 0.1 * np.sin(np.arange(60) / 6.0)  # the left arm raised before the body
+    cam = side_camera(Q, 50.0)
+    tracks = project_tracks(fig, Q, cam, NAMES, fps=30.0, noise_px=1.0, seed=3)
+    problem = make_problem(fig, tracks, cam, weights=Weights(pose_prior=None))
+    truth = solve(problem, fig.clamp(Q, 1e-3), SolverOptions(), active=problem.active)
+    out = mirror_stage(problem, truth, SolverOptions(max_iterations=40, ftol=1e-4))
+    assert out is truth  # nothing kept
+    # the left forearm has depth here: its end leaves the image plane by over a third of its length
+    K = fig.keypoints(Q)[:, fig.keypoint_index(["left_elbow", "left_wrist"])]
+    depth = np.abs(cam.depth(K[:, 1]) - cam.depth(K[:, 0])) / np.linalg.norm(K[:, 1] - K[:, 0], axis=-1)
+    assert depth.max() > 0.35
+    stage = problem.reports["mirrors"]
+    unsure = {(m.chain, m.mode): m for m in stage.uncertain()}
+    left = "left_shoulder-left_elbow-left_wrist"
+    assert (left, "end") in unsure and unsure[left, "end"].first == 0 and unsure[left, "end"].last == 60
+    assert all(abs(m.gain) <= 10.0 and m.turned and not m.kept for m in unsure.values())
+    first = next(m for m in stage.tried if m.chain == left and m.mode == "first")
+    assert first.gain < -100.0 and (left, "first") not in unsure
+    ex = stage.to_extras()
+    labels = list(ex["mirror_chains"])
+    assert [labels.index(left), 0, 60] in ex["mirror_uncertain"][:, :3].tolist()
+    assert float(ex["mirror_uncertain_nats"]) == 10.0
+    lines = pr.Result.faults_summary(SimpleNamespace(extras=ex, fps=30.0, figure=None))
+    assert any(s.startswith("limb spans whose mirror costs about the same") for s in lines)
+    assert any(s.startswith(f"  {left}: frames 0-59") for s in lines)

@@ -16,7 +16,7 @@ from .contact import FOOT_EXTRAS, FootContact, foot_metrics
 
 #: extras of the hypotheses start, the fault stage and the pose prior's check, kept by :func:`load_result`
 FAULT_EXTRAS_PREFIXES = ("hypothesis_", "repaired_", "outlier_", "prior_", "solution_turns", "solution_mirrors",
-                         "mirror_chains")
+                         "mirror_chains", "mirror_uncertain")
 from .errors import InputError
 from .figure import Figure, parse_keypoint_entries
 from .io.results import load_result_npz, save_result_npz
@@ -166,6 +166,16 @@ class Result:
                              f"{gain:.0f} nats")
             if len(kept) > limit:
                 lines.append(f"  ... and {len(kept) - limit} more")
+        labels, ties, tie = mirror_uncertain(x)
+        if len(ties):
+            lines.append(f"limb spans whose mirror costs about the same (within {tie:g} nats): {len(ties)}, "
+                         "uncertain: a keyframe there would decide them (pinrecon.starts.mirrors)")
+            for c, a, b, gain in ties[np.argsort(np.abs(ties[:, 3]))][:limit]:
+                name = labels[int(c)] if int(c) < len(labels) else str(int(c))
+                lines.append(f"  {name}: frames {int(a)}-{int(b) - 1} ({a / self.fps:.2f}-{(b - 1) / self.fps:.2f} s), "
+                             f"the mirror {abs(gain):.1f} nats {'cheaper' if gain > 0 else 'dearer'}")
+            if len(ties) > limit:
+                lines.append(f"  ... and {len(ties) - limit} more")
         if "prior_default_unfamiliar" in x:
             lines.append(f"pose prior: {x['prior_model']!s} (the default did not know "
                          f"{100 * float(x['prior_default_unfamiliar']):.0f} % of the frames' poses: solved again "
@@ -381,6 +391,17 @@ def hypothesis_spans(extras) -> tuple[list[str], np.ndarray, float]:
     chains = [str(c) for c in np.asarray(extras.get("hypothesis_chains", [])).ravel().tolist()]
     spans = np.asarray(extras.get("hypothesis_spans", np.zeros((0, 5))), float).reshape(-1, 5)
     return chains, spans, float(np.asarray(extras.get("hypothesis_threshold", 2.0)))
+
+
+def mirror_uncertain(extras) -> tuple[list[str], np.ndarray, float]:
+    """What the mirror stage (:mod:`pinrecon.starts.mirrors`) left in a result's ``extras``
+    as uncertain: the chains' labels, (U, 4) rows (chain index, first frame, frame after the
+    last, nats the mirror saved: negative, it costs more), each a limb span whose mirror
+    ended turned over within the threshold of the solution, and that threshold in nats;
+    no rows when it did not run."""
+    labels = [str(c) for c in np.asarray(extras.get("mirror_chains", []), dtype=str).ravel().tolist()]
+    rows = np.asarray(extras.get("mirror_uncertain", np.zeros((0, 4))), float).reshape(-1, 4)
+    return labels, rows, float(np.asarray(extras.get("mirror_uncertain_nats", np.nan)))
 
 
 def unfamiliar_frames(extras) -> tuple[np.ndarray, float, np.ndarray]:

@@ -47,7 +47,7 @@ from .faults import FaultReport, fault_stage
 from .problem import make_problem
 from .solver import SolveResult, SolverOptions, solve
 from .starts import initial_trajectory
-from .starts.mirrors import Mirror, MirrorStage, mirror_stage
+from .starts.mirrors import MirrorStage, mirror_stage
 from .starts.turns import Turn, TurnStage, turn_stage
 from .tracks import Keyframes
 
@@ -176,8 +176,7 @@ def solve_windowed(problem, start="auto", options: SolverOptions | None = None, 
         if mirrors:
             res = mirror_stage(wp, res, options, callback)
             for m in getattr(wp.reports.pop("mirrors", None), "tried", []):
-                mirrored.setdefault((m.chain, m.mode, m.first + a, m.last + a),
-                                    Mirror(m.chain, m.mode, m.first + a, m.last + a, m.kept, m.gain))
+                mirrored.setdefault((m.chain, m.mode, m.first + a, m.last + a), replace(m, first=m.first + a, last=m.last + a))
         if faults:
             res = fault_stage(wp, res, options, callback)
             for v, name in enumerate(["faults"] + [f"faults_{n}" for n in wp.camera_names[1:]]):

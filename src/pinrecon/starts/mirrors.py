@@ -63,7 +63,10 @@ __all__ = ["MIN_GAIN", "MODES", "Mirror", "MirrorStage", "crossing_spans", "mirr
 @dataclass(frozen=True)
 class Mirror:
     """A candidate tried: chain label, ``mode`` (one of :data:`MODES`), frames
-    ``[first, last)``, whether it was kept, and the nats it saved (negative: it cost more)."""
+    ``[first, last)``, whether it was kept, the nats it saved (negative: it cost more) and
+    whether it ended turned over (its mirrored segments' depth signs opposite the solution's
+    in at least half the span's frames where they have depth; a candidate that slid back
+    to the solution's reflection is no alternative)."""
 
     chain: str
     mode: str
@@ -71,22 +74,42 @@ class Mirror:
     last: int
     kept: bool
     gain: float
+    turned: bool = False
 
 
 @dataclass
 class MirrorStage:
     """The candidates :func:`mirror_stage` tried; ``to_extras`` gives
     ``Result.extras["solution_mirrors"]`` (M, 5): chain index (into ``mirror_chains``),
-    mode (its index in :data:`MODES`), first frame, frame after the last, nats saved (NaN: not kept) and
-    ``"mirror_chains"``, the chains' labels."""
+    mode (its index in :data:`MODES`), first frame, frame after the last, nats saved (NaN: not kept),
+    ``"mirror_chains"``, the chains' labels, and ``"mirror_uncertain"`` (U, 4), the
+    :meth:`uncertain` candidates: chain index, first frame, frame after the last, nats saved
+    (``"mirror_uncertain_nats"``: the threshold)."""
 
     tried: list
+    threshold: float = MIN_GAIN
+
+    def uncertain(self) -> list[Mirror]:
+        """The spans whose reflection the MAP cost does not decide: candidates not kept that
+        ended turned over within ``threshold`` nats of the solution (either way), and on
+        whose chain no candidate overlapping them was kept afterwards (the solution they
+        were judged against changed there)."""
+        out = []
+        for i, m in enumerate(self.tried):
+            if m.kept or not m.turned or abs(m.gain) > self.threshold:
+                continue
+            if not any(n.kept and n.chain == m.chain and n.first < m.last and m.first < n.last
+                       for n in self.tried[i + 1 :]):
+                out.append(m)
+        return out
 
     def to_extras(self) -> dict:
         labels = sorted({m.chain for m in self.tried})
         rows = [[labels.index(m.chain), MODES.index(m.mode), m.first, m.last, m.gain if m.kept else np.nan]
                 for m in self.tried]
-        return {"solution_mirrors": np.array(rows, float).reshape(-1, 5), "mirror_chains": np.array(labels, dtype=str)}
+        ties = [[labels.index(m.chain), m.first, m.last, m.gain] for m in self.uncertain()]
+        return {"solution_mirrors": np.array(rows, float).reshape(-1, 5), "mirror_chains": np.array(labels, dtype=str),
+                "mirror_uncertain": np.array(ties, float).reshape(-1, 4), "mirror_uncertain_nats": float(self.threshold)}
 
 
 def crossing_spans(ratio, min_len: int, min_depth: float, near: float = 0.0) -> list[tuple[int, int]]:
@@ -141,6 +164,27 @@ def mirrored_points(camera, P, mode: str) -> np.ndarray:
     return out
 
 
+def _depth_ratio(camera, K, i: int, j: int) -> np.ndarray:
+    """(F,) a segment's depth along the line of sight (point ``j``'s minus ``i``'s) over its
+    length, from keypoints ``K`` (F, K, 3)."""
+    p0, p1 = K[:, i], K[:, j]
+    return (camera.depth(p1) - camera.depth(p0)) / np.maximum(np.linalg.norm(p1 - p0, axis=-1), 1e-9)
+
+
+def _turned(camera, K, K_new, kp, mode: str, min_ratio: float = 0.1) -> bool:
+    """Whether the segments ``mode`` mirrors (chain points ``kp``) have the depth sign
+    opposite ``K``'s in ``K_new`` in at least half the frames where ``K`` gives them depth
+    (``|ratio| > min_ratio``, the flip metric's count)."""
+    segs = {"first": (0,), "both": (0, 1), "end": (1,)}[mode]
+    opposite = counted = 0
+    for s in segs:
+        r0, r1 = _depth_ratio(camera, K, kp[s], kp[s + 1]), _depth_ratio(camera, K_new, kp[s], kp[s + 1])
+        c = np.abs(r0) > min_ratio
+        counted += int(c.sum())
+        opposite += int((c & (np.sign(r1) != np.sign(r0))).sum())
+    return counted > 0 and 2 * opposite >= counted
+
+
 def _seen(problem, res):
     """A solve's global unknowns, its (first) camera at them and its keypoints (T, K, 3)."""
     g = globals_of(res)
@@ -182,8 +226,7 @@ def mirror_stage(problem, res, options: SolverOptions | None = None, callback=No
         for chain in chains:
             for mode in MODES if chain.n_segments > 1 else ("first",):
                 seg = 1 if mode == "end" else 0
-                p0, p1 = K[:, chain.kp[seg]], K[:, chain.kp[seg + 1]]
-                ratio = (camera.depth(p1) - camera.depth(p0)) / np.maximum(np.linalg.norm(p1 - p0, axis=-1), 1e-9)
+                ratio = _depth_ratio(camera, K, chain.kp[seg], chain.kp[seg + 1])
                 for a, b in crossing_spans(ratio, min_len, min_depth, near):
                     targets = K[a:b][:, pinned].copy()
                     moved = mirrored_points(camera, K[a:b][:, chain.kp], mode)
@@ -195,7 +238,8 @@ def mirror_stage(problem, res, options: SolverOptions | None = None, callback=No
                     cand = solve(problem, pulled.x, trial, callback, active=problem.active, g0=g, active_globals=held)
                     gain = cost - float(cand.cost)
                     keep = gain > min_gain and cand.status != "stopped by callback"
-                    tried.append(Mirror(chain.label, mode, a, b, bool(keep), float(gain)))
+                    turned = _turned(camera, K[a:b], problem.keypoints(fig.normalize(cand.x)[a:b], g), chain.kp, mode)
+                    tried.append(Mirror(chain.label, mode, a, b, bool(keep), float(gain), bool(turned)))
                     if keep:
                         cur, cost = cand, float(cand.cost)
                         g, camera, K = _seen(problem, cur)
@@ -203,7 +247,7 @@ def mirror_stage(problem, res, options: SolverOptions | None = None, callback=No
             break
     reports = getattr(problem, "reports", None)
     if reports is not None:
-        reports["mirrors"] = MirrorStage(tried)
+        reports["mirrors"] = MirrorStage(tried, min_gain)
     if not any(m.kept for m in tried):
         return res
     return solve(problem, cur.x, options, callback, active=problem.active, g0=globals_of(cur))

@@ -33,7 +33,7 @@ import numpy as np
 
 from .. import Keyframe, Keyframes, Result, SolverOptions, Tracks, Weights, reconstruct
 from ..errors import InputError
-from ..result import hypothesis_spans, unfamiliar_frames
+from ..result import hypothesis_spans, mirror_uncertain, unfamiliar_frames
 from .edits import (
     Segment,
     blend_delta,
@@ -240,9 +240,11 @@ class Session:
     def uncertain_spans(self) -> list[tuple[int, int, str]]:
         """The spans ``(first frame, frame after the last, limb)`` whose depth the
         multi-hypothesis start of the first solve could not decide (cost gap between its
-        two best hypotheses below its threshold, ``Result.extras["hypothesis_*"]``): where
-        to look for a limb on the wrong side first. Empty when that start did not run
-        (e.g. with 3D keyframes, or a result made elsewhere)."""
+        two best hypotheses below its threshold, ``Result.extras["hypothesis_*"]``) or whose
+        mirror the mirror stage found about as cheap (``["mirror_uncertain"]``), and the
+        poses the pose prior does not know: where to look for a limb on the wrong side
+        first. Empty when none of these ran (e.g. with 3D keyframes, or a result made
+        elsewhere)."""
         return list(self._uncertain)
 
     def keyframe_frames(self) -> np.ndarray:
@@ -539,8 +541,10 @@ UNFAMILIAR = "all limbs: pose unlike the prior's clips"
 
 def _uncertain_spans(result, n_frames: int) -> list[tuple[int, int, str]]:
     """``(start, stop, chain)`` of the spans the hypothesis search called uncertain
-    (:func:`pinrecon.result.hypothesis_spans`) and of the poses the pose prior does not
-    know (:func:`pinrecon.result.unfamiliar_frames`, labelled :data:`UNFAMILIAR`), clipped to the frames."""
+    (:func:`pinrecon.result.hypothesis_spans`), of those whose mirror the mirror stage found
+    as cheap (:func:`pinrecon.result.mirror_uncertain`) and of the poses the pose prior does
+    not know (:func:`pinrecon.result.unfamiliar_frames`, labelled :data:`UNFAMILIAR`),
+    clipped to the frames."""
     extras = getattr(result, "extras", None) or {}
     chains, spans, thr = hypothesis_spans(extras)
     out = []
@@ -548,6 +552,11 @@ def _uncertain_spans(result, n_frames: int) -> list[tuple[int, int, str]]:
         a, b = int(max(0, a)), int(min(n_frames, b))
         if gap < thr and b > a:
             out.append((a, b, chains[int(c)] if 0 <= int(c) < len(chains) else f"chain {int(c)}"))
+    labels, ties, _ = mirror_uncertain(extras)
+    for c, a, b, _gain in ties:
+        a, b = int(max(0, a)), int(min(n_frames, b))
+        if b > a:
+            out.append((a, b, labels[int(c)] if 0 <= int(c) < len(labels) else f"chain {int(c)}"))
     for a, b in unfamiliar_frames(extras)[2]:
         a, b = int(max(0, a)), int(min(n_frames, b))
         if b > a:
