@@ -50,10 +50,13 @@ def test_crossing_spans_are_the_runs_between_sign_changes():
     r = np.r_[np.full(10, 0.5), np.full(12, -0.6), np.full(8, 0.05), np.full(3, -0.9), np.full(9, 0.4)]
     assert crossing_spans(r, min_len=5, min_depth=0.3) == [(0, 10), (10, 22), (33, 42)]  # 0.05: too flat; 3: too short
     assert crossing_spans(r, min_len=2, min_depth=0.3) == [(0, 10), (10, 22), (30, 33), (33, 42)]
-    # a dip that does not cross cuts only when asked
+    # a dip that does not cross cuts only when asked, below the level asked, and at least
+    # min_len frames from a crossing or an end (nearer, it is the same turn)
     dip = np.r_[np.linspace(0.8, 0.1, 10), np.linspace(0.15, 0.8, 10)]
     assert crossing_spans(dip, 3, 0.3) == [(0, 20)]
     assert crossing_spans(dip, 3, 0.3, near=0.2) == [(0, 9), (9, 20)]
+    assert crossing_spans(dip, 3, 0.3, near=0.05) == [(0, 20)]  # the dip (0.1) not below it
+    assert crossing_spans(dip, 10, 0.3, near=0.2) == [(0, 20)]  # 9 frames from the start: too near
     assert crossing_spans(np.zeros(0), 3, 0.3) == []
 
 
@@ -144,9 +147,14 @@ def test_never_costlier_and_a_stopped_solve_is_left_as_it_is(arm_case):
     *_, problem, options, wrong, truth, _ = arm_case
     out = mirror_stage(problem, truth, options)
     assert out.cost <= truth.cost  # the truth is not always the MAP: a cheaper basin may be kept, never a dearer one
-    # seen in perspective with the pose prior, every mirror of the truth costs 18 nats or more, or slides back
-    assert problem.reports["mirrors"].uncertain() == []
-    assert len(problem.reports["mirrors"].to_extras()["mirror_uncertain"]) == 0
+    # seen in perspective with the pose prior, the upper arm's mirrors (bent beyond the elbow's
+    # limit) cost hundreds of nats: decided; what is reported uncertain (the forearm's pieces,
+    # whose mirror costs 0.8 nats less to 9.6 more) ended turned over within 10 nats
+    stage = problem.reports["mirrors"]
+    first = [m for m in stage.tried if m.chain.startswith("left_") and m.mode in ("first", "both")]
+    assert first and all(m.gain < -100.0 for m in first)
+    assert all(m.turned and not m.kept and abs(m.gain) <= 10.0 and m.mode == "end" for m in stage.uncertain())
+    assert len(stage.to_extras()["mirror_uncertain"]) == len(stage.uncertain())
     stopped = replace(wrong, status="stopped by callback")
     assert mirror_stage(problem, stopped, options) is stopped
 
@@ -172,16 +180,21 @@ def test_a_mirror_with_the_same_image_is_reported_uncertain():
     depth = np.abs(cam.depth(K[:, 1]) - cam.depth(K[:, 0])) / np.linalg.norm(K[:, 1] - K[:, 0], axis=-1)
     assert depth.max() > 0.35
     stage = problem.reports["mirrors"]
-    unsure = {(m.chain, m.mode): m for m in stage.uncertain()}
+    unsure = stage.uncertain()
     left = "left_shoulder-left_elbow-left_wrist"
-    assert (left, "end") in unsure and unsure[left, "end"].first == 0 and unsure[left, "end"].last == 60
-    assert all(abs(m.gain) <= 10.0 and m.turned and not m.kept for m in unsure.values())
+    covered = np.zeros(60, bool)  # the left forearm's uncertain spans (cut where it dips near the plane)
+    for m in unsure:
+        if m.chain == left and m.mode == "end":
+            covered[m.first : m.last] = True
+    assert covered.sum() >= 45, np.flatnonzero(covered)
+    assert all(abs(m.gain) <= 10.0 and m.turned and not m.kept for m in unsure)
     first = next(m for m in stage.tried if m.chain == left and m.mode == "first")
-    assert first.gain < -100.0 and (left, "first") not in unsure
+    assert first.gain < -100.0 and not any(m.chain == left and m.mode == "first" for m in unsure)
     ex = stage.to_extras()
     labels = list(ex["mirror_chains"])
-    assert [labels.index(left), 0, 60] in ex["mirror_uncertain"][:, :3].tolist()
+    m = next(m for m in unsure if m.chain == left)
+    assert [labels.index(left), m.first, m.last] in ex["mirror_uncertain"][:, :3].tolist()
     assert float(ex["mirror_uncertain_nats"]) == 10.0
     lines = pr.Result.faults_summary(SimpleNamespace(extras=ex, fps=30.0, figure=None))
     assert any(s.startswith("limb spans whose mirror costs about the same") for s in lines)
-    assert any(s.startswith(f"  {left}: frames 0-59") for s in lines)
+    assert any(s.startswith(f"  {left}: frames {m.first}-{m.last - 1}") for s in lines)
