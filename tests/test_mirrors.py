@@ -145,7 +145,10 @@ def test_a_mirrored_arm_span_is_turned_back(arm_case):
 
 def test_never_costlier_and_a_stopped_solve_is_left_as_it_is(arm_case):
     *_, problem, options, wrong, truth, _ = arm_case
-    out = mirror_stage(problem, truth, options)
+    seen = []
+    out = mirror_stage(problem, truth, options, observe=lambda m, cur, cand: seen.append((m, cur.cost - cand.cost)))
+    assert [m for m, _ in seen] == problem.reports["mirrors"].tried  # observed once per candidate, in order
+    assert all(gain == pytest.approx(m.gain) for m, gain in seen)  # with the solves it was judged on
     assert out.cost <= truth.cost  # the truth is not always the MAP: a cheaper basin may be kept, never a dearer one
     # seen in perspective with the pose prior, the upper arm's mirrors (bent beyond the elbow's
     # limit) cost hundreds of nats: decided; what is reported uncertain (the forearm's pieces,

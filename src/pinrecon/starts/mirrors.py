@@ -207,7 +207,7 @@ def _seen(problem, res):
 def mirror_stage(problem, res, options: SolverOptions | None = None, callback=None, *, min_span_s: float = 0.3,
                  min_depth: float = 0.3, sigma_m: float = 0.02, pull_iterations: int = 15,
                  trial_iterations: int = 40, min_gain: float = MIN_GAIN, passes: int = 1, near: float = NEAR,
-                 skip: Sequence[str] | None = None):
+                 skip: Sequence[str] | None = None, observe=None):
     """The solved motion ``res`` with its limbs' spans mirrored where that lowers the MAP
     cost (module docstring); ``passes`` rounds at most, a round after one that kept
     nothing is not run; chains holding a keypoint named in ``skip`` are not tried, by
@@ -216,7 +216,10 @@ def mirror_stage(problem, res, options: SolverOptions | None = None, callback=No
     the end with ``options``
     (``res`` itself when none is kept, when the problem has several views or no limb
     chains, or when the user stopped the solve); the candidates tried go to
-    ``problem.reports["mirrors"]`` (:class:`MirrorStage`)."""
+    ``problem.reports["mirrors"]`` (:class:`MirrorStage`). ``observe``, for diagnostics
+    (``bench/diagnose_mirrors.py``), is called after every candidate as
+    ``observe(mirror, current, candidate)``: the :class:`Mirror`, the solve it was tried on
+    and the candidate's solve (both at the solution's global unknowns)."""
     if res.status == "stopped by callback" or len(getattr(problem, "views", ())) != 1:
         return res
     fig = problem.figure
@@ -253,6 +256,8 @@ def mirror_stage(problem, res, options: SolverOptions | None = None, callback=No
                     keep = gain > min_gain and cand.status != "stopped by callback"
                     turned = _turned(camera, K[a:b], problem.keypoints(fig.normalize(cand.x)[a:b], g), chain.kp, mode)
                     tried.append(Mirror(chain.label, mode, a, b, bool(keep), float(gain), bool(turned)))
+                    if observe is not None:
+                        observe(tried[-1], cur, cand)
                     if keep:
                         cur, cost = cand, float(cand.cost)
                         g, camera, K = _seen(problem, cur)
