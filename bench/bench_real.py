@@ -49,7 +49,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import pinrecon as pr
 from pinrecon import metrics
-from pinrecon.result import hypothesis_spans, mirror_uncertain
+from pinrecon.result import uncertain_limb_spans
 from pinrecon.synthetic import (
     COCO_BODY_FROM_CMU,
     body_keypoints,
@@ -97,10 +97,7 @@ def flagged(extras, P_est, P_true, camera, names):
     unf = np.zeros(T, bool)
     for a, b in np.asarray(extras.get("prior_unfamiliar_spans", np.zeros((0, 2))), int).reshape(-1, 2):
         unf[a:b] = True
-    chains, spans, thr = hypothesis_spans(extras)
-    labels, ties, _ = mirror_uncertain(extras)
-    unsure_spans = [(chains[int(c)], int(s0), int(s1)) for c, s0, s1, _, gap in spans if gap < thr]
-    unsure_spans += [(labels[int(c)], int(s0), int(s1)) for c, s0, s1, _ in ties]
+    unsure_spans = uncertain_limb_spans(extras)
     flip, _ = metrics.flipped_segments(P_est, P_true, camera, [(names.index(a), names.index(b)) for a, b in SEGMENTS])
     any_flag, n_hit = unf.copy(), 0
     for k, (a, b) in enumerate(SEGMENTS):

@@ -395,8 +395,8 @@ def _mirrors(problem, init) -> bool:
     pose prior in use (switched to, or named). Where the default prior knows the clip's poses
     its limb scores hold: on bench_real's walk and run every span tried cost more (20 and 16
     candidates, none kept) and only doubled the time; on the dance, whose poses it does not
-    know, the stage took PA-MPJPE without keyframes from 74.0 to 60.3 mm (bench/README.md,
-    "Mirrored limb spans")."""
+    know, PA-MPJPE without keyframes went from 74.0 mm before the stage to 41.1 now (arms
+    only, runs cut at dips; bench/README.md, "Mirrored limb spans")."""
     return _cold_start(init) and problem.weights.pose_prior_model in BROADER_PRIOR.values()
 
 

@@ -404,6 +404,20 @@ def mirror_uncertain(extras) -> tuple[list[str], np.ndarray, float]:
     return labels, rows, float(np.asarray(extras.get("mirror_uncertain_nats", np.nan)))
 
 
+def uncertain_limb_spans(extras) -> list[tuple[str, int, int]]:
+    """``(limb chain, first frame, frame after the last)`` of every span whose reflection a
+    result calls uncertain: the hypothesis search's below its gap threshold
+    (:func:`hypothesis_spans`) and the mirror stage's (:func:`mirror_uncertain`); a chain
+    index with no label is named ``"chain N"``."""
+    def label(names, c):
+        return names[int(c)] if 0 <= int(c) < len(names) else f"chain {int(c)}"
+
+    chains, spans, thr = hypothesis_spans(extras)
+    out = [(label(chains, c), int(a), int(b)) for c, a, b, _state, gap in spans if gap < thr]
+    labels, ties, _ = mirror_uncertain(extras)
+    return out + [(label(labels, c), int(a), int(b)) for c, a, b, _gain in ties]
+
+
 def unfamiliar_frames(extras) -> tuple[np.ndarray, float, np.ndarray]:
     """What :mod:`pinrecon.unfamiliar` left in a result's ``extras``: each frame's distance
     from the pose prior, the limit, and the (n, 2) spans beyond it; an empty distance and

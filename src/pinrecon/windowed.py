@@ -48,7 +48,7 @@ from .problem import make_problem
 from .solver import SolveResult, SolverOptions, solve
 from .starts import initial_trajectory
 from .starts.mirrors import MirrorStage, mirror_stage
-from .starts.turns import Turn, TurnStage, turn_stage
+from .starts.turns import TurnStage, turn_stage
 from .tracks import Keyframes
 
 __all__ = [
@@ -172,7 +172,7 @@ def solve_windowed(problem, start="auto", options: SolverOptions | None = None, 
         if turns:
             res = turn_stage(wp, res, options, callback)
             for t in getattr(wp.reports.pop("turns", None), "turns", []):  # a window tried twice (overlap): once
-                tried.setdefault((t.first + a, t.last + a), Turn(t.first + a, t.last + a, t.turns, t.gain))
+                tried.setdefault((t.first + a, t.last + a), replace(t, first=t.first + a, last=t.last + a))
         if mirrors:
             res = mirror_stage(wp, res, options, callback)
             for m in getattr(wp.reports.pop("mirrors", None), "tried", []):

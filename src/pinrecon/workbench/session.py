@@ -33,7 +33,7 @@ import numpy as np
 
 from .. import Keyframe, Keyframes, Result, SolverOptions, Tracks, Weights, reconstruct
 from ..errors import InputError
-from ..result import hypothesis_spans, mirror_uncertain, unfamiliar_frames
+from ..result import uncertain_limb_spans, unfamiliar_frames
 from .edits import (
     Segment,
     blend_delta,
@@ -546,19 +546,7 @@ def _uncertain_spans(result, n_frames: int) -> list[tuple[int, int, str]]:
     not know (:func:`pinrecon.result.unfamiliar_frames`, labelled :data:`UNFAMILIAR`),
     clipped to the frames."""
     extras = getattr(result, "extras", None) or {}
-    chains, spans, thr = hypothesis_spans(extras)
-    out = []
-    for c, a, b, _state, gap in spans:
-        a, b = int(max(0, a)), int(min(n_frames, b))
-        if gap < thr and b > a:
-            out.append((a, b, chains[int(c)] if 0 <= int(c) < len(chains) else f"chain {int(c)}"))
-    labels, ties, _ = mirror_uncertain(extras)
-    for c, a, b, _gain in ties:
-        a, b = int(max(0, a)), int(min(n_frames, b))
-        if b > a:
-            out.append((a, b, labels[int(c)] if 0 <= int(c) < len(labels) else f"chain {int(c)}"))
-    for a, b in unfamiliar_frames(extras)[2]:
-        a, b = int(max(0, a)), int(min(n_frames, b))
-        if b > a:
-            out.append((a, b, UNFAMILIAR))
-    return sorted(out)
+    spans = [(a, b, chain) for chain, a, b in uncertain_limb_spans(extras)]
+    spans += [(int(a), int(b), UNFAMILIAR) for a, b in unfamiliar_frames(extras)[2]]
+    clipped = [(max(0, a), min(n_frames, b), label) for a, b, label in spans]
+    return sorted((a, b, label) for a, b, label in clipped if b > a)
