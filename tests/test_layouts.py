@@ -214,3 +214,72 @@ def test_checks_follow_the_names():
     names = {c.point for c in checks_for(LAYOUTS["body25"].names)}
     assert {"neck", "mid_hip", "left_eye", "left_big_toe"} <= names
     assert "neck" not in {c.point for c in checks_for(LAYOUTS["body25b"].names)}
+
+
+# ------------------------------------------------- Figure.human("auto", tracks=...): the CLI's choice
+def _quiet_load(path, **kw):
+    import warnings
+
+    from pinrecon import load_tracks
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return load_tracks(path, **kw)
+
+
+@pytest.mark.parametrize(("folder", "expected"), [("pose2sim_body25b_multi", "body25b"),
+                                                  ("pose2sim_halpe26", "halpe26"),
+                                                  ("openpose_coco18", "body25")])
+def test_human_auto_takes_the_map_of_real_detector_files(folder, expected):
+    tracks = _quiet_load(DET / folder, fps=25.0)
+    fig = Figure.human("auto", tracks=tracks)
+    assert fig.keypoint_names == Figure.human(expected).keypoint_names
+    assert Figure.human("auto", tracks=[tracks, tracks]).keypoint_names == fig.keypoint_names  # one per camera
+
+
+def test_human_auto_without_a_layout_takes_the_map_carrying_most_names():
+    from pinrecon import Tracks
+
+    def tracks(names):
+        return Tracks(np.zeros((2, len(names), 2)), list(names), 30.0)
+
+    coco = list(LAYOUTS["coco17"].names)
+    assert Figure.human("auto", tracks=tracks(coco)).keypoint_names == Figure.human("coco17").keypoint_names
+    # BODY_25B's names without their layout: body25b and halpe26 carry all 25, body25 only 23
+    b25b = tracks(LAYOUTS["body25b"].names)
+    assert b25b.layout is None
+    chosen = set(Figure.human("auto", tracks=b25b).keypoint_names)
+    assert set(LAYOUTS["body25b"].names) <= chosen
+    # names no map carries: COCO-17
+    assert Figure.human("auto", tracks=tracks(["a", "b", "c", "d"])).keypoint_names == Figure.human().keypoint_names
+
+
+def test_human_auto_needs_tracks_and_tracks_need_auto():
+    tracks = _quiet_load(DET / "pose2sim_halpe26", fps=25.0)
+    with pytest.raises(InputError) as e:
+        Figure.human("auto")
+    assert e.value.field == "keypoints" and "tracks=" in str(e.value)
+    with pytest.raises(InputError) as e:
+        Figure.human("coco17", tracks=tracks)
+    assert e.value.field == "tracks"
+
+
+def test_points_the_generic_human_ignores_name_the_map_that_carries_them():
+    from pinrecon.problem import shared_keypoints
+
+    names = list(LAYOUTS["body25b"].names)
+    with pytest.warns(UserWarning, match=r"ignored: .*Figure\.human\('body25b'\)") as rec:
+        shared = shared_keypoints(Figure.human(), names, "t.json")
+    assert len(rec) == 1 and len(shared) == 17
+    # the map that carries them all: nothing ignored, no warning
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert len(shared_keypoints(Figure.human("body25b"), names, "t.json")) == 25
+    # a figure that is not the generic human gets no hint
+    joints = Figure.human("joints")
+    joints.meta.pop("generic")
+    with pytest.warns(UserWarning) as rec:
+        shared_keypoints(joints, names[:17] + ["left_wrist"], "t.json")
+    assert all("Figure.human(" not in str(w.message) for w in rec)

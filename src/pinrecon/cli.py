@@ -12,24 +12,6 @@ from .errors import PinreconError
 __all__ = ["main"]
 
 
-def _human_keypoints(tracks) -> str:
-    """The human keypoint map for these tracks: their detector layout's map
-    (:mod:`pinrecon.layouts`), else the bundled map sharing most names (COCO-17 on a tie)."""
-    from .figure import load_keypoint_map
-    from .layouts import LAYOUTS, human_keypoint_maps
-
-    tracks = [t for t in (tracks or []) if t is not None]
-    for t in tracks:
-        lay = LAYOUTS.get(getattr(t, "layout", None) or "")
-        if lay is not None and lay.human_map:
-            return lay.human_map
-    names = {n for t in tracks for n in t.names}
-    maps = human_keypoint_maps()
-    shared = {m: len(names & {k.name for k in load_keypoint_map(p)}) for m, p in maps.items()}
-    best = max(shared.values(), default=0)
-    return "coco17" if best == 0 or shared.get("coco17") == best else max(shared, key=shared.get)
-
-
 def _figure_from_args(args, tracks=None):
     from pathlib import Path
 
@@ -39,7 +21,7 @@ def _figure_from_args(args, tracks=None):
 
     spec = args.figure
     if spec == "human":
-        fig = Figure.human(args.keypoints or _human_keypoints(tracks))
+        fig = Figure.human(args.keypoints) if args.keypoints else Figure.human("auto", tracks=tracks or [])
     elif spec.lower().endswith(".bvh") or spec.lower().endswith(".urdf") or Path(spec).is_file():
         if args.keypoints and not Path(args.keypoints).is_file():
             raise InputError(

@@ -177,19 +177,30 @@ class Figure:
         return cls.from_urdf_string(xml, keypoints, root=root, name=name, source=str(path))
 
     @classmethod
-    def human(cls, keypoints: str = "coco17", *, root: str = "free", height: float | None = None) -> Figure:
+    def human(cls, keypoints: str = "coco17", *, tracks=None, root: str = "free", height: float | None = None) -> Figure:
         """The human model of example-robot-data (38 joints, nv = 42 with the free flyer).
 
         ``keypoints``: a bundled map ``models/keypoints/human_<name>.json`` (``coco17``,
         ``body25``, ``body25b``, ``halpe26``: see :mod:`pinrecon.layouts`; ``joints``: the
-        joint centres) or a keypoint-map JSON file; another name lists the bundled maps.
+        joint centres) or a keypoint-map JSON file; another name lists the bundled maps;
+        ``"auto"``: the map for ``tracks`` (one :class:`~pinrecon.Tracks` or a list), their
+        detector layout's, else the map sharing most of their point names
+        (:func:`pinrecon.layouts.human_map_for`), as the command line's ``--figure human``
+        chooses. ``tracks`` is for ``"auto"`` only.
         ``height``: the stature in metres (top of the head to the soles, standing), the
         whole figure scaled uniformly to it; default the model's own (1.77 m).
         ``meta["generic"] == "human"`` marks it as the generic human (calibrated by
         default, :func:`pinrecon.reconstruct`).
         """
-        from .layouts import human_keypoint_map
+        from .layouts import human_keypoint_map, human_map_for
 
+        if isinstance(keypoints, str) and keypoints.lower() == "auto":
+            if tracks is None:
+                raise InputError("'auto' chooses the map for tracks: give tracks=", field="keypoints")
+            keypoints = human_map_for(tracks)
+        elif tracks is not None:
+            raise InputError(f"tracks= is for keypoints='auto' (the map chosen for them), not {keypoints!r}",
+                             field="tracks")
         urdf = example_robot_data_robots() / "human_description" / "robots" / "human.urdf"
         kp_path = human_keypoint_map(keypoints)
         try:

@@ -23,7 +23,8 @@ import numpy as np
 
 from .errors import InputError, UnknownNameError
 from .io.calibration import CalibratedCamera
-from .layouts import shared_point_names
+from .figure_files import load_keypoint_map
+from .layouts import human_keypoint_map, human_map_for_names, shared_point_names
 from .proportions import Proportions
 from .rows import (
     CameraScale, GlobalPrior, JointKeyframes, JointLimits, Measurement2D, Points3D, Posture, Smoothing, State,
@@ -329,8 +330,21 @@ def shared_keypoints(figure, names, source, what="tracks", warn=True) -> list[st
     the other ignored names (points the figure does not carry) give a warning."""
     shared, ignored = shared_point_names(names, figure.keypoint_names, what=what, source=source)
     if ignored and warn:
-        warnings.warn(f"{what} points not on the figure are ignored: {ignored}", stacklevel=3)
+        warnings.warn(f"{what} points not on the figure are ignored: {ignored}{_better_human_map(figure, names)}",
+                      stacklevel=3)
     return shared
+
+
+def _better_human_map(figure, names) -> str:
+    """For the generic human whose keypoint map leaves out points another bundled map
+    carries: the hint naming that map (what the command line's ``--figure human`` takes)."""
+    if figure.meta.get("generic") != "human":
+        return ""
+    best = human_map_for_names(names)
+    carried = {k.name for k in load_keypoint_map(human_keypoint_map(best))}
+    if len(set(names) & carried) <= len(set(names) & set(figure.keypoint_names)):
+        return ""
+    return f" (Figure.human({best!r}), or Figure.human('auto', tracks=tracks), carries more of them)"
 
 
 def keyframe_rows(figure, keyframes: Keyframes, factor: int) -> list:

@@ -46,6 +46,8 @@ __all__ = [
     "normalise_point_name",
     "human_keypoint_maps",
     "human_keypoint_map",
+    "human_map_for",
+    "human_map_for_names",
     "shared_point_names",
 ]
 
@@ -209,6 +211,32 @@ def human_keypoint_map(name) -> Path:
         f"'human' are: {', '.join(maps)} (or give a keypoint-map JSON file)",
         field="keypoints",
     )
+
+
+def human_map_for(tracks) -> str:
+    """The bundled human keypoint map for these tracks (one :class:`~pinrecon.Tracks` or
+    several, e.g. one per camera): the map of their detector layout (``tracks.layout``, set
+    by :func:`pinrecon.load_tracks`), else :func:`human_map_for_names` of their point names.
+    ``Figure.human("auto", tracks=...)`` and the command line's ``--figure human`` choose
+    with it."""
+    seq = [tracks] if hasattr(tracks, "names") else list(tracks or [])
+    seq = [t for t in seq if t is not None]
+    for t in seq:
+        lay = LAYOUTS.get(getattr(t, "layout", None) or "")
+        if lay is not None and lay.human_map:
+            return lay.human_map
+    return human_map_for_names({n for t in seq for n in t.names})
+
+
+def human_map_for_names(names) -> str:
+    """The bundled human keypoint map carrying most of these point names, COCO-17 on a tie
+    or when none carries any."""
+    from ..figure_files import load_keypoint_map
+
+    names = set(names)
+    shared = {m: len(names & {k.name for k in load_keypoint_map(p)}) for m, p in human_keypoint_maps().items()}
+    best = max(shared.values(), default=0)
+    return "coco17" if best == 0 or shared.get("coco17") == best else max(shared, key=shared.get)
 
 
 def shared_point_names(names, figure_names, *, what: str = "tracks", source=None) -> tuple[list[str], list[str]]:
