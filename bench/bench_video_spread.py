@@ -7,7 +7,8 @@ of motion the pose prior does not know can land in different basins after small 
 its input, so this runs each setting on the trial as it is and on copies with a small share
 of the observed detections removed at random (``--drop``, default 1 %: a detector's missed
 points), several seeds, and prints each run, then per setting the median, the range and
-how many runs stayed within 10 mm of the unperturbed one.
+how many runs stayed within 10 mm of the unperturbed one (the copies are
+``pinrecon.stability.drop_detections``'s, which ``--stability`` solves again on a user's clip).
 
 Settings: no camera file (``camera="auto"``, the image size, ``Figure.human("auto",
 tracks=...)``: BODY_25B's map), Pose2Sim's calibration of camera 1 with the BODY_25B map,
@@ -33,6 +34,7 @@ REPO = Path(__file__).resolve().parents[1]
 import pinrecon as pr
 from pinrecon.io.calibration import load_cameras
 from pinrecon.metrics import pa_mpjpe
+from pinrecon.stability import drop_detections
 
 FOLDER = REPO / "examples" / "data" / "pose2sim_balancing"
 TRC = FOLDER / "S00_P00_T01_BalancingTrial_0-100.trc"
@@ -50,19 +52,6 @@ def truth() -> np.ndarray:
     T = int(rows[2].split("\t")[2])
     X = np.array([r.split("\t")[2 : 2 + 3 * len(names)] for r in rows[5 : 5 + T]], float).reshape(T, len(names), 3)
     return X[:, [names.index(v) for v in COCO12_TRC.values()]]
-
-
-def dropped(tracks, share: float, seed: int):
-    """A copy of ``tracks`` with ``share`` of its observed points made missing at random."""
-    if seed == 0 or share <= 0:
-        return tracks
-    rng = np.random.default_rng(seed)
-    pts, conf = tracks.points.copy(), tracks.confidence.copy()
-    t, k = np.nonzero(tracks.observed)
-    pick = rng.choice(len(t), size=max(1, round(share * len(t))), replace=False)
-    pts[t[pick], k[pick]] = np.nan
-    conf[t[pick], k[pick]] = 0.0
-    return pr.Tracks(pts, tracks.names, tracks.fps, conf, tracks.source, tracks.layout)
 
 
 def main(argv=None):
@@ -93,7 +82,8 @@ def main(argv=None):
     out: dict = {}
     for label, (fig, names, camera, kw, GG) in settings.items():
         for seed in range(a.seeds + 1):
-            tr = dropped(tracks if names is None else tracks.select(names), a.drop, seed)
+            tr = tracks if names is None else tracks.select(names)
+            tr = drop_detections(tr, a.drop, seed) if seed else tr
             t0 = time.perf_counter()
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")

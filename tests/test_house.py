@@ -150,7 +150,7 @@ LAYERS = [
     ("starts", ["pinrecon.starts", "pinrecon.planarity"]),
     ("result", ["pinrecon.result"]),
     ("pipeline", ["pinrecon.reconstruct", "pinrecon.synthetic", "pinrecon.faults", "pinrecon.metrics",
-                  "pinrecon.windowed", "pinrecon.unfamiliar"]),
+                  "pinrecon.windowed", "pinrecon.unfamiliar", "pinrecon.stability"]),
     ("exports and pictures", ["pinrecon.io.bvh_export", "pinrecon.io.csv_export", "pinrecon.viz"]),
     ("applications", ["pinrecon.cli", "pinrecon.demo", "pinrecon.workbench", "pinrecon"]),
 ]

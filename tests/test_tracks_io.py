@@ -345,11 +345,13 @@ def test_docs_result_keys_are_the_keys_result_save_writes(human, tmp_path):
     assert sorted(documented) == sorted(written)
     assert documented[:5] == list(REQUIRED_KEYS)
     # the keys written only when they apply: two cameras, a calibration, the hypothesis
-    # search, the turn and mirror stages, the fault stage, the floor stage, the pose prior's check (each producer's own key list)
+    # search, the turn and mirror stages, the fault stage, the floor stage, the pose prior's check, the
+    # stability check (each producer's own key list)
     from pinrecon.contact import FOOT_EXTRAS
     from pinrecon.faults import FaultReport
     from pinrecon.starts.hypotheses import HypothesisReport
     from pinrecon.starts.mirrors import MirrorStage
+    from pinrecon.stability import Stability
     from pinrecon.starts.turns import TurnStage
     from pinrecon.unfamiliar import UnfamiliarPoses, switch_extras
 
@@ -362,6 +364,7 @@ def test_docs_result_keys_are_the_keys_result_save_writes(human, tmp_path):
     extra |= set(HypothesisReport(chains=[], states=np.zeros((3, 0), int), gaps=np.zeros((3, 0))).to_extras())
     extra |= set(UnfamiliarPoses(np.zeros(3), 9.0).to_extras()) | set(switch_extras("human_pose_mixture", 0.9))
     extra |= set(TurnStage([]).to_extras()) | set(MirrorStage([]).to_extras())
+    extra |= set(Stability(0.01, (0,), np.zeros((1, 3)), np.zeros((3, 1)), ["nose"], 30.0, 30.0).to_extras())
     cells = re.findall(r"^\| ([^|]+) \|", sometimes, re.M)
     conditional = {k for c in cells for k in re.findall(r"`(\w+)`", c)}
     assert conditional == extra

@@ -118,6 +118,10 @@ def cmd_reconstruct(args) -> int:
     from .solver import SolverOptions
     from .tracks import load_keyframes, load_tracks
 
+    if args.stability is not None and args.stability < 1:
+        from .errors import InputError
+
+        raise InputError(f"must be a number of solves, at least 1; got {args.stability}", field="--stability")
     auto = _auto_camera_from_args(args)
     cams = [auto] if auto is not None else _cameras_for_tracks(args.camera, args.tracks)
     tracks = [load_tracks(path, fps=args.fps, person=args.person, layout=args.layout) for path in args.tracks]
@@ -131,11 +135,17 @@ def cmd_reconstruct(args) -> int:
                                  "loss"))
     opts = SolverOptions(max_iterations=args.max_iterations)
     progress = _Progress(args.quiet, args.max_iterations)
-    res = reconstruct(
-        fig, tracks, cam, kf, fps_out=args.fps_out, weights=Weights(**wkw), options=opts, callback=progress, seed=args.seed,
-        calibrate=args.calibrate, window=args.window, **_feet_from_args(args),
-    )
+    kw = {"fps_out": args.fps_out, "weights": Weights(**wkw), "options": opts, "seed": args.seed,
+          "calibrate": args.calibrate, "window": args.window, **_feet_from_args(args)}
+    res = reconstruct(fig, tracks, cam, kf, callback=progress, **kw)
     progress.close()
+    if args.stability:
+        from .stability import stability
+
+        if not args.quiet:
+            print(f"pinrecon: solving again on {args.stability} copies of the tracks with 1 % of the detections "
+                  "left out (--stability)", file=sys.stderr)
+        res.extras.update(stability(fig, tracks, cam, kf, result=res, runs=args.stability, **kw).to_extras())
     res.save(args.out)
     written = [args.out]
     if args.save_figure:
@@ -379,6 +389,9 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--save-figure", metavar="FILE.urdf",
                    help="write the (calibrated) figure's URDF there and its keypoint map next to it "
                    "(FILE.keypoints.json), for reuse with --figure FILE.urdf --keypoints FILE.keypoints.json")
+    r.add_argument("--stability", type=int, metavar="N",
+                   help="solve again on N copies of the tracks with 1 %% of the detections left out at random and "
+                   "report where the 3D points move by more than 30 mm (N more solves; pinrecon.stability)")
     r.add_argument("--out", required=True, help="result NPZ")
     r.add_argument("--quiet", action="store_true", help="no progress output")
     r.set_defaults(func=cmd_reconstruct)

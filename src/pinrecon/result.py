@@ -14,9 +14,10 @@ import numpy as np
 from .cameras import camera_from_dict
 from .contact import FOOT_EXTRAS, FootContact, foot_metrics
 
-#: extras of the hypotheses start, the fault stage and the pose prior's check, kept by :func:`load_result`
+#: extras of the hypotheses start, the fault stage, the pose prior's check and :mod:`pinrecon.stability`,
+#: kept by :func:`load_result`
 FAULT_EXTRAS_PREFIXES = ("hypothesis_", "repaired_", "outlier_", "prior_", "solution_turns", "solution_mirrors",
-                         "mirror_chains", "mirror_uncertain")
+                         "mirror_chains", "mirror_uncertain", "stability_")
 from .errors import InputError
 from .figure import Figure, parse_keypoint_entries
 from .io.results import load_result_npz, save_result_npz
@@ -129,6 +130,7 @@ class Result:
         lines += self.calibration_summary()
         lines += self.feet_summary()
         lines += self.faults_summary()
+        lines += stability_lines(self.extras, self.fps)
         return "\n".join(lines)
 
     def faults_summary(self, limit: int = 6) -> list[str]:
@@ -416,6 +418,52 @@ def uncertain_limb_spans(extras) -> list[tuple[str, int, int]]:
     out = [(label(chains, c), int(a), int(b)) for c, a, b, _state, gap in spans if gap < thr]
     labels, ties, _ = mirror_uncertain(extras)
     return out + [(label(labels, c), int(a), int(b)) for c, a, b, _gain in ties]
+
+
+def unstable_spans(extras) -> list[tuple[int, int, str, float, int]]:
+    """``(first frame, frame after the last, keypoint, largest distance mm, copies)`` of
+    every run of frames where a copy of :mod:`pinrecon.stability` differed from the result
+    by more than its threshold (mean over the keypoints, after the frame's similarity
+    alignment): the keypoint that moved most there, by how much, in how many copies.
+    Empty when the result has no stability extras."""
+    if "stability_spread_mm" not in extras:
+        return []
+    spread = np.atleast_2d(np.asarray(extras["stability_spread_mm"], float))
+    per_point = np.asarray(extras["stability_keypoint_spread_mm"], float)
+    names = [str(n) for n in np.asarray(extras["stability_names"], dtype=str)]
+    over = spread > float(extras["stability_threshold_mm"])
+    bad = np.flatnonzero(over.any(axis=0))
+    out = []
+    for run in np.split(bad, np.flatnonzero(np.diff(bad) > 1) + 1) if len(bad) else []:
+        a, b = int(run[0]), int(run[-1]) + 1
+        k = int(np.argmax(per_point[a:b].max(axis=0)))
+        out.append((a, b, names[k], float(per_point[a:b, k].max()), int(over[:, a:b].any(axis=1).sum())))
+    return out
+
+
+def stability_lines(extras, fps: float, limit: int = 6) -> list[str]:
+    """The summary's lines for :mod:`pinrecon.stability`'s extras (none without them)."""
+    if "stability_spread_mm" not in extras:
+        return []
+    spread = np.atleast_2d(np.asarray(extras["stability_spread_mm"], float))
+    thr, n = float(extras["stability_threshold_mm"]), len(spread)
+    means = ", ".join(f"{m:.1f}" for m in spread.mean(axis=1))
+    lines = [(f"stability: solved again on {n} copies of the tracks with {100 * float(extras['stability_drop']):g} % "
+              f"of the detections left out: mean difference from this result {means} mm (per frame, after a "
+              "similarity alignment; pinrecon.stability)")]
+    spans = unstable_spans(extras)
+    if not spans:
+        lines.append(f"  every frame within {thr:g} mm in every copy")
+        return lines
+    frames = sum(b - a for a, b, *_ in spans)
+    lines.append(f"  {frames} of {spread.shape[1]} frames differ by more than {thr:g} mm in some copy: the data allow "
+                 "more than one answer there, and a 3D keyframe there would decide it")
+    for a, b, name, mm, k in sorted(spans, key=lambda r: -r[3])[:limit]:
+        lines.append(f"  frames {a}-{b - 1} ({a / fps:.2f}-{(b - 1) / fps:.2f} s): {k} of {n} copies, most at {name} "
+                     f"({mm:.0f} mm)")
+    if len(spans) > limit:
+        lines.append(f"  ... and {len(spans) - limit} more")
+    return lines
 
 
 def unfamiliar_frames(extras) -> tuple[np.ndarray, float, np.ndarray]:

@@ -1,0 +1,122 @@
+"""How far a reconstruction holds: the same solve on copies of the tracks with a few
+detections left out.
+
+A result already says where two limb reflections cost about the same (the hypothesis
+search's cost gaps, the mirror stage's ties) and where the poses are unlike the pose
+prior's clips. It cannot say when the whole solve would land in another basin after a
+small change of its input. On Pose2Sim's real balancing trial that happens: with 1 % of
+the detections removed at random, the calibrated 17-COCO-point setting ends at 98-104 mm
+PA-MPJPE in some draws and 124-192 mm in others (``bench/bench_video_spread.py``), and the
+MAP cost does not tell the better one (bench/README.md). :func:`stability` measures it
+for the user's own clip: it runs :func:`pinrecon.reconstruct` again on ``runs`` copies of
+the tracks, each with ``drop`` of its observed points removed at random (a detector's
+missed points), and compares each copy's 3D keypoints with the result's, frame by frame
+after a similarity alignment (so a camera fitted a little differently does not count).
+Frames where a copy differs by more than ``threshold_mm`` are where the data allow more
+than one answer: a 3D keyframe there (the workbench) decides it.
+
+It costs ``runs`` more solves. The numbers go into the result's ``extras``
+(``stability_*``, ``docs/formats.md``) and its summary; the CLI's ``--stability N`` runs it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import InputError
+from .metrics import procrustes
+from .reconstruct import reconstruct
+from .result import Result, stability_lines
+from .tracks import Tracks
+
+__all__ = ["Stability", "drop_detections", "stability"]
+
+
+@dataclass
+class Stability:
+    """What :func:`stability` measured.
+
+    drop : share of the observed points removed in each copy.
+    seeds : the random seed of each copy.
+    spread_mm : (runs, T) per copy and frame, the mean distance of its keypoints from the
+        result's after the frame's similarity alignment, millimetres.
+    keypoint_spread_mm : (T, K) per frame and keypoint, the largest such distance over the
+        copies.
+    names : the K keypoints compared (the tracked ones).
+    threshold_mm : a frame where a copy's mean distance exceeds it is unstable.
+    fps : the reconstruction's frame rate (for the summary's times).
+    """
+
+    drop: float
+    seeds: tuple[int, ...]
+    spread_mm: np.ndarray
+    keypoint_spread_mm: np.ndarray
+    names: list[str]
+    threshold_mm: float
+    fps: float
+
+    def to_extras(self) -> dict:
+        return {"stability_drop": float(self.drop), "stability_seeds": np.asarray(self.seeds, int),
+                "stability_spread_mm": np.asarray(self.spread_mm, float),
+                "stability_keypoint_spread_mm": np.asarray(self.keypoint_spread_mm, float),
+                "stability_names": np.asarray(self.names, dtype=str),
+                "stability_threshold_mm": float(self.threshold_mm)}
+
+    def summary(self) -> str:
+        return "\n".join(stability_lines(self.to_extras(), self.fps))
+
+
+def drop_detections(tracks: Tracks, share: float, seed: int) -> Tracks:
+    """A copy of ``tracks`` with ``share`` of its observed points (at least one) made
+    missing, chosen at random with ``seed``."""
+    rng = np.random.default_rng(seed)
+    pts = tracks.points.copy()
+    conf = None if tracks.confidence is None else tracks.confidence.copy()
+    t, k = np.nonzero(tracks.observed)
+    if len(t) == 0:
+        return tracks
+    pick = rng.choice(len(t), size=min(len(t), max(1, round(share * len(t)))), replace=False)
+    pts[t[pick], k[pick]] = np.nan
+    if conf is not None:
+        conf[t[pick], k[pick]] = 0.0
+    return Tracks(pts, tracks.names, tracks.fps, conf, tracks.source, tracks.layout)
+
+
+def stability(figure, tracks: Tracks | Sequence[Tracks], camera, keyframes=None, *, result: Result | None = None,
+              runs: int = 4, drop: float = 0.01, random_seed: int = 0, threshold_mm: float = 30.0,
+              **kwargs) -> Stability:
+    """Solve again on ``runs`` copies of ``tracks`` with ``drop`` of the observed points
+    removed at random (seeds ``random_seed``, ``random_seed + 1``, ...) and compare with ``result`` (the
+    solve of the tracks as they are, computed here when not given). ``figure``, ``camera``,
+    ``keyframes`` and ``kwargs`` are :func:`pinrecon.reconstruct`'s, as the result was made
+    with them (a warm ``init`` is refused: the copies would start from the answer). With
+    several cameras, each camera's tracks lose the same share. Returns a :class:`Stability`;
+    ``result.extras.update(s.to_extras())`` puts it in the result and its summary."""
+    if not isinstance(runs, int) or isinstance(runs, bool) or runs < 1:
+        raise InputError(f"must be a whole number of solves, at least 1; got {runs!r}", field="runs")
+    if not 0.0 < float(drop) < 0.5:
+        raise InputError(f"must be a share of the detections between 0 and 0.5; got {drop!r}", field="drop")
+    if not float(threshold_mm) > 0.0:
+        raise InputError(f"must be a distance in mm above 0; got {threshold_mm!r}", field="threshold_mm")
+    if kwargs.get("init") is not None and not isinstance(kwargs["init"], str):
+        raise InputError("a warm start would start every copy from the answer: give a start's name or none",
+                         field="init")
+    several = not isinstance(tracks, Tracks)
+    views = list(tracks) if several else [tracks]
+    base = result if result is not None else reconstruct(figure, tracks, camera, keyframes, **kwargs)
+    names = [n for n in dict.fromkeys(n for t in views for n in t.names) if n in base.figure.keypoint_names]
+    idx = base.figure.keypoint_index(names)
+    ref = base.keypoints3d[:, idx]
+    seeds = tuple(int(random_seed) + i for i in range(runs))
+    spread, per_point = [], np.zeros(ref.shape[:2])
+    for s in seeds:
+        copies = [drop_detections(t, float(drop), s + 7919 * v) for v, t in enumerate(views)]
+        res = reconstruct(figure, copies if several else copies[0], camera, keyframes, **kwargs)
+        P = res.keypoints3d[:, res.figure.keypoint_index(names)]
+        d_mm = 1000.0 * np.linalg.norm(procrustes(P, ref) - ref, axis=-1)  # (T, K)
+        spread.append(d_mm.mean(axis=1))
+        per_point = np.maximum(per_point, d_mm)
+    return Stability(float(drop), seeds, np.array(spread), per_point, names, float(threshold_mm), float(base.fps))
