@@ -307,3 +307,25 @@ def test_uncertain_spans_come_from_the_result_and_are_drawn(case, start):
     cols = np.flatnonzero(purple)
     assert cols.min() == pytest.approx(x(20), abs=1.0) and cols.max() == pytest.approx(x(44), abs=1.0)
     assert not purple[int(x(70))]
+
+
+def test_unstable_frames_of_a_stability_check_are_uncertain_spans(case, start):
+    """A result of ``reconstruct --stability N`` opened in the workbench: the runs of frames
+    its copies moved by more than the threshold join the uncertain spans, named by the
+    keypoint that moved most."""
+    from dataclasses import replace
+
+    from pinrecon.stability import Stability
+    from pinrecon.workbench.session import UNSTABLE
+
+    fig, Q, cam, tracks, keys = case
+    T = len(start.times)
+    spread = np.zeros((2, T))
+    spread[1, 10:25] = 55.0
+    per_point = np.zeros((T, 2))
+    per_point[10:25, 1] = 140.0
+    check = Stability(0.02, (0, 1), spread, per_point, ["left_wrist", "right_wrist"], 30.0, start.fps)
+    s = Session(fig, tracks, cam, keys, weights=WEIGHTS, floor=FLOOR,
+                result=replace(start, extras=check.to_extras()))
+    assert s.uncertain_spans() == [(10, 25, f"{UNSTABLE}: right_wrist moved up to 140 mm with 2 % of the detections "
+                                            "left out")]

@@ -33,7 +33,7 @@ import numpy as np
 
 from .. import Keyframe, Keyframes, Result, SolverOptions, Tracks, Weights, reconstruct
 from ..errors import InputError
-from ..result import uncertain_limb_spans, unfamiliar_frames
+from ..result import uncertain_limb_spans, unfamiliar_frames, unstable_spans
 from .edits import (
     Segment,
     blend_delta,
@@ -241,8 +241,9 @@ class Session:
         """The spans ``(first frame, frame after the last, limb)`` whose depth the
         multi-hypothesis start of the first solve could not decide (cost gap between its
         two best hypotheses below its threshold, ``Result.extras["hypothesis_*"]``) or whose
-        mirror the mirror stage found about as cheap (``["mirror_uncertain"]``), and the
-        poses the pose prior does not know: where to look for a limb on the wrong side
+        mirror the mirror stage found about as cheap (``["mirror_uncertain"]``), the poses
+        the pose prior does not know, and the frames a stability check of the result found
+        unstable (``reconstruct --stability N``): where to look for a limb on the wrong side
         first. Empty when none of these ran (e.g. with 3D keyframes, or a result made
         elsewhere)."""
         return list(self._uncertain)
@@ -537,16 +538,23 @@ class Session:
 
 #: the label of a span whose poses the pose prior does not know (:mod:`pinrecon.unfamiliar`)
 UNFAMILIAR = "all limbs: pose unlike the prior's clips"
+#: the start of the label of a span a stability check found unstable (:mod:`pinrecon.stability`)
+UNSTABLE = "unstable"
 
 
 def _uncertain_spans(result, n_frames: int) -> list[tuple[int, int, str]]:
     """``(start, stop, chain)`` of the spans the hypothesis search called uncertain
     (:func:`pinrecon.result.hypothesis_spans`), of those whose mirror the mirror stage found
-    as cheap (:func:`pinrecon.result.mirror_uncertain`) and of the poses the pose prior does
-    not know (:func:`pinrecon.result.unfamiliar_frames`, labelled :data:`UNFAMILIAR`),
+    as cheap (:func:`pinrecon.result.mirror_uncertain`), of the poses the pose prior does
+    not know (:func:`pinrecon.result.unfamiliar_frames`, labelled :data:`UNFAMILIAR`) and of
+    the frames a stability check found unstable (:func:`pinrecon.result.unstable_spans`, a
+    result of ``reconstruct --stability N``, labelled by the keypoint that moved most),
     clipped to the frames."""
     extras = getattr(result, "extras", None) or {}
     spans = [(a, b, chain) for chain, a, b in uncertain_limb_spans(extras)]
     spans += [(int(a), int(b), UNFAMILIAR) for a, b in unfamiliar_frames(extras)[2]]
+    pct = 100 * float(extras.get("stability_drop", np.nan))
+    spans += [(a, b, f"{UNSTABLE}: {name} moved up to {mm:.0f} mm with {pct:g} % of the detections left out")
+              for a, b, name, mm, _ in unstable_spans(extras)]
     clipped = [(max(0, a), min(n_frames, b), label) for a, b, label in spans]
     return sorted((a, b, label) for a, b, label in clipped if b > a)
