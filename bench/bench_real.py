@@ -87,27 +87,29 @@ def score(P_est, P_true, camera, names):
     }
 
 
-def flagged(extras, P_est, P_true, camera, names):
-    """How the result's own warnings cover its errors: (share of the flipped limb-segment
-    frames that fall in a frame the result flags, share of frames flagged), percent. A
-    segment's frame is flagged when its limb's reflection span is uncertain (the hypothesis
-    search, or a mirror the mirror stage found as cheap) or the pose there is unlike the pose
-    prior's clips (``pinrecon.unfamiliar``)."""
-    T = len(P_true)
+def flag_mask(extras, T: int) -> np.ndarray:
+    """(T, S) bool: the limb segment-frames (``SEGMENTS``) a result's own warnings flag: its
+    limb's reflection span is uncertain (the hypothesis search, or a mirror the mirror stage
+    found as cheap) or the pose there is unlike the pose prior's clips
+    (``pinrecon.unfamiliar``)."""
     unf = np.zeros(T, bool)
     for a, b in np.asarray(extras.get("prior_unfamiliar_spans", np.zeros((0, 2))), int).reshape(-1, 2):
         unf[a:b] = True
-    unsure_spans = uncertain_limb_spans(extras)
-    flip, _ = metrics.flipped_segments(P_est, P_true, camera, [(names.index(a), names.index(b)) for a, b in SEGMENTS])
-    any_flag, n_hit = unf.copy(), 0
-    for k, (a, b) in enumerate(SEGMENTS):
-        unsure = unf.copy()
-        for chain, s0, s1 in unsure_spans:
+    out = np.repeat(unf[:, None], len(SEGMENTS), axis=1)
+    for chain, s0, s1 in uncertain_limb_spans(extras):
+        for k, (a, b) in enumerate(SEGMENTS):
             if {a, b} <= set(chain.split("-")):
-                unsure[s0:s1] = True
-        any_flag |= unsure
-        n_hit += int((flip[:, k] & unsure).sum())
-    return 100.0 * n_hit / max(int(flip.sum()), 1), 100.0 * float(any_flag.mean())
+                out[s0:s1, k] = True
+    return out
+
+
+def flagged(extras, P_est, P_true, camera, names):
+    """How the result's own warnings cover its errors: (share of the flipped limb-segment
+    frames that fall in a frame the result flags (:func:`flag_mask`), share of frames
+    flagged), percent."""
+    flip, _ = metrics.flipped_segments(P_est, P_true, camera, [(names.index(a), names.index(b)) for a, b in SEGMENTS])
+    mask = flag_mask(extras, len(P_true))
+    return 100.0 * int((flip & mask).sum()) / max(int(flip.sum()), 1), 100.0 * float(mask.any(axis=1).mean())
 
 
 def detector_case(clip, azimuth, keyframes, frames=None, seed=0):
