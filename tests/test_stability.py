@@ -86,6 +86,21 @@ def test_stability_extras_survive_save_and_load(tmp_path, coco_walk, human):
     assert "stability: solved again on 1 copies" in back.summary()
 
 
+def test_the_copies_do_not_repeat_the_results_warnings(coco_walk, human):
+    """Tracks with a point the figure lacks: the result warns once; the copies stay quiet."""
+    import warnings
+
+    cam, tracks, _, _ = coco_walk
+    pts = np.concatenate([tracks.points[:30], tracks.points[:30, :1]], axis=1)
+    extra = pr.Tracks(pts, [*tracks.names, "left_big_toe"], tracks.fps)
+    with pytest.warns(UserWarning, match="not on the figure"):
+        res = pr.reconstruct(human, extra, cam, floor="none")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        s = stability(human, extra, cam, result=res, runs=1, floor="none")
+    assert s.names == list(tracks.names)  # the points the figure has
+
+
 @pytest.mark.parametrize(("kw", "field"), [({"runs": 0}, "runs"), ({"runs": 1.5}, "runs"), ({"drop": 0.0}, "drop"),
                                            ({"drop": 0.6}, "drop"), ({"threshold_mm": -1.0}, "threshold_mm"),
                                            ({"init": np.zeros((3, 3))}, "init")])

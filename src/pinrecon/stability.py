@@ -21,6 +21,7 @@ It costs ``runs`` more solves. The numbers go into the result's ``extras``
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -93,7 +94,8 @@ def stability(figure, tracks: Tracks | Sequence[Tracks], camera, keyframes=None,
     solve of the tracks as they are, computed here when not given). ``figure``, ``camera``,
     ``keyframes`` and ``kwargs`` are :func:`pinrecon.reconstruct`'s, as the result was made
     with them (a warm ``init`` is refused: the copies would start from the answer). With
-    several cameras, each camera's tracks lose the same share. Returns a :class:`Stability`;
+    several cameras, each camera's tracks lose the same share. The copies' warnings are not
+    repeated (they are the result's). Returns a :class:`Stability`;
     ``result.extras.update(s.to_extras())`` puts it in the result and its summary."""
     if not isinstance(runs, int) or isinstance(runs, bool) or runs < 1:
         raise InputError(f"must be a whole number of solves, at least 1; got {runs!r}", field="runs")
@@ -114,7 +116,9 @@ def stability(figure, tracks: Tracks | Sequence[Tracks], camera, keyframes=None,
     spread, per_point = [], np.zeros(ref.shape[:2])
     for s in seeds:
         copies = [drop_detections(t, float(drop), s + 7919 * v) for v, t in enumerate(views)]
-        res = reconstruct(figure, copies if several else copies[0], camera, keyframes, **kwargs)
+        with warnings.catch_warnings():  # the copies' warnings are the result's again
+            warnings.simplefilter("ignore")
+            res = reconstruct(figure, copies if several else copies[0], camera, keyframes, **kwargs)
         P = res.keypoints3d[:, res.figure.keypoint_index(names)]
         d_mm = 1000.0 * np.linalg.norm(procrustes(P, ref) - ref, axis=-1)  # (T, K)
         spread.append(d_mm.mean(axis=1))
