@@ -102,7 +102,8 @@ def test_the_copies_do_not_repeat_the_results_warnings(coco_walk, human):
 
 
 @pytest.mark.parametrize(("kw", "field"), [({"runs": 0}, "runs"), ({"runs": 1.5}, "runs"), ({"drop": 0.0}, "drop"),
-                                           ({"drop": 0.6}, "drop"), ({"threshold_mm": -1.0}, "threshold_mm"),
+                                           ({"drop": 0.6}, "drop"), ({"drop": "a lot"}, "drop"),
+                                           ({"threshold_mm": -1.0}, "threshold_mm"), ({"threshold_mm": None}, "threshold_mm"),
                                            ({"init": np.zeros((3, 3))}, "init")])
 def test_bad_arguments_are_refused_before_any_solve(kw, field, coco_walk, human):
     cam, tracks, _, _ = coco_walk

@@ -99,9 +99,9 @@ def stability(figure, tracks: Tracks | Sequence[Tracks], camera, keyframes=None,
     ``result.extras.update(s.to_extras())`` puts it in the result and its summary."""
     if not isinstance(runs, int) or isinstance(runs, bool) or runs < 1:
         raise InputError(f"must be a whole number of solves, at least 1; got {runs!r}", field="runs")
-    if not 0.0 < float(drop) < 0.5:
+    if not 0.0 < _number(drop) < 0.5:
         raise InputError(f"must be a share of the detections between 0 and 0.5; got {drop!r}", field="drop")
-    if not float(threshold_mm) > 0.0:
+    if not _number(threshold_mm) > 0.0:
         raise InputError(f"must be a distance in mm above 0; got {threshold_mm!r}", field="threshold_mm")
     if kwargs.get("init") is not None and not isinstance(kwargs["init"], str):
         raise InputError("a warm start would start every copy from the answer: give a start's name or none",
@@ -124,3 +124,13 @@ def stability(figure, tracks: Tracks | Sequence[Tracks], camera, keyframes=None,
         spread.append(d_mm.mean(axis=1))
         per_point = np.maximum(per_point, d_mm)
     return Stability(float(drop), seeds, np.array(spread), per_point, names, float(threshold_mm), float(base.fps))
+
+
+def _number(x) -> float:
+    """``x`` as a float, NaN when it is not a number (so that the checks above refuse it)."""
+    if isinstance(x, bool):
+        return float("nan")
+    try:
+        return float(x)
+    except (TypeError, ValueError):
+        return float("nan")
