@@ -72,6 +72,15 @@ SEGMENTS = [("left_shoulder", "left_elbow"), ("left_elbow", "left_wrist"), ("rig
 LIMITS = {"first+last": (40.0, 5.0), "none": (50.0, 8.0)}
 
 
+def within_limits(keyframes: str, pa: float, flips: float) -> str:
+    """``"yes"`` / ``"no"`` against the issue's limits for that keyframe setting, ``"-"``
+    for a setting the issue sets none for."""
+    if keyframes not in LIMITS:
+        return "-"
+    pa_max, fl_max = LIMITS[keyframes]
+    return "yes" if pa <= pa_max and flips <= fl_max else "no"
+
+
 def calibration_mode() -> str | None:
     """``"lengths"`` when :func:`pinrecon.reconstruct` can calibrate, else ``None``."""
     return "lengths" if "calibrate" in inspect.signature(pr.reconstruct).parameters else None
@@ -277,15 +286,18 @@ def main(argv=None):
           "| root error (mm) | MPJPE (mm) | swaps found | false repairs | outliers reported / injected "
           "| flipped segments flagged (%) | frames flagged (%) | time (s) | within the issue's limits |")
     print("|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|")
+    def detector_rows(clip, kf, start, copies=(None,)):
+        """The runs of one table row: every angle, as run (``None``) or on each copy's seed."""
+        return [run_detector(clip, az, kf, start, mode, a.frames, a.figure, a.pose_prior_model, a.floor, a.camera,
+                             copy=c) for az in a.angles for c in copies]
+
     for clip in a.clips:
         for kf in a.keyframes:
             for start in a.starts:
-                rows = [run_detector(clip, az, kf, start, mode, a.frames, a.figure, a.pose_prior_model, a.floor,
-                                     a.camera) for az in a.angles]
+                rows = detector_rows(clip, kf, start)
                 m = {k: float(np.mean([r[k] for r in rows])) for k in rows[0]}
                 worst = max(r["flips"] for r in rows)
-                pa_max, fl_max = LIMITS.get(kf, (np.nan, np.nan))
-                ok = "yes" if m["pa"] <= pa_max and m["flips"] <= fl_max else "no" if kf in LIMITS else "-"
+                ok = within_limits(kf, m["pa"], m["flips"])
                 print(f"| {clip} | {kf} | {start} | {m['pa']:.1f} | {m['flips']:.1f} | {worst:.1f} | {m['dz']:.1f} "
                       f"| {m['root']:.1f} | {m['mpjpe']:.1f} | {sum(r['swaps_found'] for r in rows)}/"
                       f"{sum(r['swaps'] for r in rows)} | {sum(r['false_repairs'] for r in rows)} "
@@ -302,13 +314,10 @@ def main(argv=None):
         for clip in a.clips:
             for kf in a.keyframes:
                 for start in a.starts:
-                    base = [run_detector(clip, az, kf, start, mode, a.frames, a.figure, a.pose_prior_model, a.floor,
-                                         a.camera) for az in a.angles]
-                    rows = [run_detector(clip, az, kf, start, mode, a.frames, a.figure, a.pose_prior_model, a.floor,
-                                         a.camera, copy=c) for az in a.angles for c in range(a.copies)]
+                    base = detector_rows(clip, kf, start)
+                    rows = detector_rows(clip, kf, start, range(a.copies))
                     pa, fl = (np.array([r[k] for r in rows]) for k in ("pa", "flips"))
-                    pa_max, fl_max = LIMITS.get(kf, (np.nan, np.nan))
-                    ok = "yes" if pa.mean() <= pa_max and fl.mean() <= fl_max else "no" if kf in LIMITS else "-"
+                    ok = within_limits(kf, pa.mean(), fl.mean())
                     print(f"| {clip} | {kf} | {start} | {np.mean([r['pa'] for r in base]):.1f} / "
                           f"{np.mean([r['flips'] for r in base]):.1f} | {pa.mean():.1f} / {fl.mean():.1f} "
                           f"| {pa.min():.1f}-{pa.max():.1f} | {fl.min():.1f}-{fl.max():.1f} | {ok} |", flush=True)
