@@ -14,7 +14,12 @@ copies with 1 % of the detections left out). Against the clip's own joints:
   uncertain reflection spans, ties of the mirror stage, poses unlike the prior's clips).
 
     OPENBLAS_NUM_THREADS=1 python bench/bench_stability.py                 # walk, run, dance (about 25 min)
-    python bench/bench_stability.py --cases walk:none:45 run:none:60 --runs 3
+    python bench/bench_stability.py --cases walk:none:45 run:none:60 --runs 3 --jobs 2
+
+``--timing``: what ``n_jobs`` (CLI ``--jobs``) saves. The check of each case timed one copy
+after another and with ``--jobs`` processes, in turn (A B A B ..., ``--repeats`` pairs), the
+medians and the median of the pairs' ratios; the two give the same spreads (to 1e-6 mm, checked
+here on every pair).
 """
 
 from __future__ import annotations
@@ -39,7 +44,7 @@ CASES = ["walk:none:45", "walk:first+last:60", "run:none:60", "run:first+last:45
          "spin:first+last:60"]
 
 
-def run(clip: str, keyframes: str, angle: float, runs: int) -> dict:
+def run(clip: str, keyframes: str, angle: float, runs: int, jobs: int | None = None) -> dict:
     tracks, cam, keys, P, _ = detector_case(clip, angle, keyframes, None, seed=int(angle))
     names = list(tracks.names)
     fig = pr.Figure.human()
@@ -48,7 +53,7 @@ def run(clip: str, keyframes: str, angle: float, runs: int) -> dict:
         warnings.simplefilter("ignore")
         res = pr.reconstruct(fig, tracks, cam, keys, calibrate="lengths")
         t_solve = time.perf_counter() - t0
-        check = stability(fig, tracks, cam, keys, result=res, runs=runs, calibrate="lengths")
+        check = stability(fig, tracks, cam, keys, result=res, runs=runs, calibrate="lengths", n_jobs=jobs)
     P_est = res.keypoints3d[:, res.figure.keypoint_index(names)]
     flip, count = metrics.flipped_segments(P_est, P, cam, [(names.index(a), names.index(b)) for a, b in SEGMENTS])
     unstable = np.zeros(len(P), bool)
@@ -67,14 +72,51 @@ def run(clip: str, keyframes: str, angle: float, runs: int) -> dict:
             "t_solve": t_solve, "t_check": time.perf_counter() - t0 - t_solve}
 
 
+def timing(clip: str, keyframes: str, angle: float, runs: int, jobs: int, repeats: int) -> dict:
+    """The check's wall time one copy after another and in ``jobs`` processes, in turn."""
+    tracks, cam, keys, _, _ = detector_case(clip, angle, keyframes, None, seed=int(angle))
+    fig = pr.Figure.human()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = pr.reconstruct(fig, tracks, cam, keys, calibrate="lengths")
+    times = {1: [], jobs: []}
+    for _ in range(repeats):
+        got = {}
+        for n in (1, jobs):
+            t0 = time.perf_counter()
+            got[n] = stability(fig, tracks, cam, keys, result=res, runs=runs, calibrate="lengths", n_jobs=n)
+            times[n].append(time.perf_counter() - t0)
+        gap = float(np.abs(got[1].spread_mm - got[jobs].spread_mm).max())
+        if gap > 1e-6:
+            raise SystemExit(f"n_jobs={jobs} gave other spreads than one after another ({gap:.3g} mm)")
+    ratio = np.array(times[1]) / np.array(times[jobs])
+    return {"serial": float(np.median(times[1])), "parallel": float(np.median(times[jobs])),
+            "ratio": float(np.median(ratio)), "lo": float(ratio.min()), "hi": float(ratio.max())}
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--cases", nargs="*", default=CASES, help="clip:keyframes:angle (clips walk, run, spin)")
     ap.add_argument("--runs", type=int, default=3, help="copies per check (default 3)")
+    ap.add_argument("--jobs", type=int, default=None, help="processes per check (n_jobs; default one after another)")
+    ap.add_argument("--timing", action="store_true", help="time the check with 1 and --jobs processes instead")
+    ap.add_argument("--repeats", type=int, default=3, help="with --timing: pairs of runs per case (default 3)")
     a = ap.parse_args(argv)
     from provenance import provenance
 
     print(provenance())
+    if a.timing:
+        jobs = a.jobs or os.cpu_count() or 1
+        print(f"\n--stability {a.runs}: the check's wall time one copy after another and in {jobs} processes "
+              f"({os.cpu_count()} CPUs; {a.repeats} pairs, medians)\n")
+        print(f"| clip | keyframes | angle | one after another (s) | n_jobs={jobs} (s) | ratio (min-max) |")
+        print("|---|---|---:|---:|---:|---|", flush=True)
+        for case in a.cases:
+            clip, kf, angle = case.split(":")
+            r = timing(clip, kf, float(angle), a.runs, jobs, a.repeats)
+            print(f"| {clip} | {kf} | {float(angle):.0f} | {r['serial']:.1f} | {r['parallel']:.1f} "
+                  f"| {r['ratio']:.2f} ({r['lo']:.2f}-{r['hi']:.2f}) |", flush=True)
+        return
     print(f"\n--stability {a.runs} on bench_real's detector cases (1 % of the detections left out per copy)\n")
     print("| clip | keyframes | angle | PA-MPJPE (mm) | flips (%) | copies from the result (mm) | unstable frames (%) "
           "| PA-MPJPE in / out of them (mm) | flipped segments in them (%) | flagged by the result (%) "
@@ -82,7 +124,7 @@ def main(argv=None):
     print("|---|---|---:|---:|---:|---|---:|---|---:|---:|---:|---|", flush=True)
     for case in a.cases:
         clip, kf, angle = case.split(":")
-        r = run(clip, kf, float(angle), a.runs)
+        r = run(clip, kf, float(angle), a.runs, a.jobs)
         spreads = ", ".join(f"{v:.1f}" for v in r["spreads"])
         print(f"| {clip} | {kf} | {float(angle):.0f} | {r['pa']:.1f} | {r['flips']:.1f} | {spreads} | {r['unstable']:.0f} "
               f"| {r['err_in']:.1f} / {r['err_out']:.1f} | {r['flips_in']:.0f} | {r['flags']:.0f} | {r['both']:.0f} "

@@ -153,3 +153,29 @@ def test_pose_prior_flags_reach_the_weights_of_reconstruct_and_edit(monkeypatch)
     # the feet stage: reconstruct's default unless --floor says otherwise, on edit too
     assert p.parse_args(["edit", *base]).floor is None and p.parse_args(r).floor is None
     assert p.parse_args(["edit", *base, "--floor", "none"]).floor == "none"
+
+
+def test_stability_flags_reach_the_check_and_the_result(demo_dir, tmp_path, monkeypatch):
+    """``reconstruct --stability N --jobs J``: the check runs N copies in J processes, and what
+    it measured is in the saved result. (The check itself: tests/test_stability.py.)"""
+    from pinrecon.stability import Stability
+
+    seen = {}
+
+    def check(fig, tracks, cam, kf, *, result, runs, n_jobs, **kw):
+        seen.update(runs=runs, n_jobs=n_jobs, seed=kw["seed"])
+        T = len(result.times)
+        return Stability(0.01, tuple(range(runs)), np.full((runs, T), 4.0), np.zeros((T, 1)), ["left_knee"], 30.0,
+                         result.fps)
+
+    from pinrecon._resources import bundled_clip
+
+    monkeypatch.setattr(sys.modules["pinrecon.stability"], "stability", check)
+    out = tmp_path / "r.npz"
+    assert main(["reconstruct", "--figure", str(bundled_clip("walk")), "--length-scale", "0.056444",
+                 "--tracks", str(demo_dir / "tracks.json"), "--camera", str(demo_dir / "camera.json"),
+                 "--max-iterations", "2", "--seed", "rest", "--stability", "3", "--jobs", "2", "--out", str(out), "--quiet"]) == 0
+    assert seen == {"runs": 3, "n_jobs": 2, "seed": "rest"}  # the copies are solved as the result was
+    back = pr.load_result(out)
+    assert back.extras["stability_spread_mm"].shape == (3, len(back.times))
+    assert "stability: solved again on 3 copies" in back.summary()

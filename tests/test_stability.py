@@ -101,10 +101,35 @@ def test_the_copies_do_not_repeat_the_results_warnings(coco_walk, human):
     assert s.names == list(tracks.names)  # the points the figure has
 
 
+def test_copies_solved_in_processes_give_the_same_numbers_in_the_same_order(coco_walk, human):
+    """``n_jobs=2``: the copies solved in two processes give each copy's spread as the
+    one-after-another path does (checked against hand-solved copies above), copy by copy."""
+    cam, tracks, _, _ = coco_walk
+    short = pr.Tracks(tracks.points[:40], tracks.names, tracks.fps)
+    res = pr.reconstruct(human, short, cam, None, floor="none")
+    one = stability(human, short, cam, result=res, runs=2, random_seed=3, floor="none")
+    two = stability(human, short, cam, result=res, runs=2, random_seed=3, n_jobs=2, floor="none")
+    assert not np.allclose(one.spread_mm[0], one.spread_mm[1])  # so that an exchange of copies would show
+    np.testing.assert_allclose(two.spread_mm, one.spread_mm, rtol=0, atol=1e-6)
+    np.testing.assert_allclose(two.keypoint_spread_mm, one.keypoint_spread_mm, rtol=0, atol=1e-6)
+    assert two.seeds == one.seeds == (3, 4)
+
+
+def test_a_callback_that_cannot_go_to_another_process_is_refused(coco_walk, human):
+    cam, tracks, _, _ = coco_walk
+    short = pr.Tracks(tracks.points[:20], tracks.names, tracks.fps)
+    res = pr.reconstruct(human, short, cam, None, floor="none", options=pr.SolverOptions(max_iterations=1))
+    with pytest.raises(pr.InputError, match="n_jobs=1, or a callback defined at module level") as e:
+        stability(human, short, cam, result=res, runs=2, n_jobs=2, floor="none", callback=lambda report: False)
+    assert e.value.field == "n_jobs"
+
+
 @pytest.mark.parametrize(("kw", "field"), [({"runs": 0}, "runs"), ({"runs": 1.5}, "runs"), ({"drop": 0.0}, "drop"),
                                            ({"drop": 0.6}, "drop"), ({"drop": "a lot"}, "drop"),
                                            ({"threshold_mm": -1.0}, "threshold_mm"), ({"threshold_mm": None}, "threshold_mm"),
-                                           ({"init": np.zeros((3, 3))}, "init")])
+                                           ({"init": np.zeros((3, 3))}, "init"), ({"n_jobs": 0}, "n_jobs"),
+                                           ({"n_jobs": -2}, "n_jobs"), ({"n_jobs": 1.5}, "n_jobs"),
+                                           ({"n_jobs": True}, "n_jobs")])
 def test_bad_arguments_are_refused_before_any_solve(kw, field, coco_walk, human):
     cam, tracks, _, _ = coco_walk
     with pytest.raises(pr.InputError) as e:

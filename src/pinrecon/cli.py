@@ -145,7 +145,8 @@ def cmd_reconstruct(args) -> int:
         if not args.quiet:
             print(f"pinrecon: solving again on {args.stability} copies of the tracks with 1 % of the detections "
                   "left out (--stability)", file=sys.stderr)
-        res.extras.update(stability(fig, tracks, cam, kf, result=res, runs=args.stability, **kw).to_extras())
+        res.extras.update(stability(fig, tracks, cam, kf, result=res, runs=args.stability, n_jobs=args.jobs,
+                                    **kw).to_extras())
     res.save(args.out)
     written = [args.out]
     if args.save_figure:
@@ -392,6 +393,9 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--stability", type=int, metavar="N",
                    help="solve again on N copies of the tracks with 1 %% of the detections left out at random and "
                    "report where the 3D points move by more than 30 mm (N more solves; pinrecon.stability)")
+    r.add_argument("--jobs", type=int, default=None, metavar="J",
+                   help="with --stability, solve J copies at once in separate processes (-1: one per CPU; "
+                   "default one after another)")
     r.add_argument("--out", required=True, help="result NPZ")
     r.add_argument("--quiet", action="store_true", help="no progress output")
     r.set_defaults(func=cmd_reconstruct)

@@ -15,14 +15,19 @@ after a similarity alignment (so a camera fitted a little differently does not c
 Frames where a copy differs by more than ``threshold_mm`` are where the data allow more
 than one answer: a 3D keyframe there (the workbench) decides it.
 
-It costs ``runs`` more solves. The numbers go into the result's ``extras``
-(``stability_*``, ``docs/formats.md``) and its summary; the CLI's ``--stability N`` runs it.
+It costs ``runs`` more solves, which ``n_jobs`` spreads over processes (the copies are
+independent; the answer is the same whatever the number of processes). The numbers go into the
+result's ``extras`` (``stability_*``, ``docs/formats.md``) and its summary; the CLI's
+``--stability N`` runs it (``--jobs J`` for the processes).
 """
 
 from __future__ import annotations
 
+import os
+import pickle
 import warnings
 from collections.abc import Sequence
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -88,14 +93,17 @@ def drop_detections(tracks: Tracks, share: float, seed: int) -> Tracks:
 
 def stability(figure, tracks: Tracks | Sequence[Tracks], camera, keyframes=None, *, result: Result | None = None,
               runs: int = 4, drop: float = 0.01, random_seed: int = 0, threshold_mm: float = 30.0,
-              **kwargs) -> Stability:
+              n_jobs: int | None = None, **kwargs) -> Stability:
     """Solve again on ``runs`` copies of ``tracks`` with ``drop`` of the observed points
     removed at random (seeds ``random_seed``, ``random_seed + 1``, ...) and compare with ``result`` (the
     solve of the tracks as they are, computed here when not given). ``figure``, ``camera``,
     ``keyframes`` and ``kwargs`` are :func:`pinrecon.reconstruct`'s, as the result was made
     with them (a warm ``init`` is refused: the copies would start from the answer). With
     several cameras, each camera's tracks lose the same share. The copies' warnings are not
-    repeated (they are the result's). Returns a :class:`Stability`;
+    repeated (they are the result's). ``n_jobs``: how many processes solve the copies at once
+    (scikit-learn's convention: ``None`` or 1 one after another here, -1 one per CPU, at most
+    ``runs``); every argument must then be one Python can send to another process (pickle), so
+    a ``callback`` written as a lambda is refused. Returns a :class:`Stability`;
     ``result.extras.update(s.to_extras())`` puts it in the result and its summary."""
     if not isinstance(runs, int) or isinstance(runs, bool) or runs < 1:
         raise InputError(f"must be a whole number of solves, at least 1; got {runs!r}", field="runs")
@@ -106,6 +114,7 @@ def stability(figure, tracks: Tracks | Sequence[Tracks], camera, keyframes=None,
     if kwargs.get("init") is not None and not isinstance(kwargs["init"], str):
         raise InputError("a warm start would start every copy from the answer: give a start's name or none",
                          field="init")
+    jobs = _jobs(n_jobs, runs)
     several = not isinstance(tracks, Tracks)
     views = list(tracks) if several else [tracks]
     base = result if result is not None else reconstruct(figure, tracks, camera, keyframes, **kwargs)
@@ -113,17 +122,48 @@ def stability(figure, tracks: Tracks | Sequence[Tracks], camera, keyframes=None,
     idx = base.figure.keypoint_index(names)
     ref = base.keypoints3d[:, idx]
     seeds = tuple(int(random_seed) + i for i in range(runs))
+    tasks = [([drop_detections(t, float(drop), s + 7919 * v) for v, t in enumerate(views)], several)
+             for s in seeds]
+    solved = _solve_copies(jobs, (figure, camera, keyframes, kwargs, names), tasks)
     spread, per_point = [], np.zeros(ref.shape[:2])
-    for s in seeds:
-        copies = [drop_detections(t, float(drop), s + 7919 * v) for v, t in enumerate(views)]
-        with warnings.catch_warnings():  # the copies' warnings are the result's again
-            warnings.simplefilter("ignore")
-            res = reconstruct(figure, copies if several else copies[0], camera, keyframes, **kwargs)
-        P = res.keypoints3d[:, res.figure.keypoint_index(names)]
+    for P in solved:
         d_mm = 1000.0 * np.linalg.norm(procrustes(P, ref) - ref, axis=-1)  # (T, K)
         spread.append(d_mm.mean(axis=1))
         per_point = np.maximum(per_point, d_mm)
     return Stability(float(drop), seeds, np.array(spread), per_point, names, float(threshold_mm), float(base.fps))
+
+
+def _solve_copy(common, task) -> np.ndarray:
+    """One copy's solve: its (T, K) keypoints of ``names``."""
+    figure, camera, keyframes, kwargs, names = common
+    copies, several = task
+    with warnings.catch_warnings():  # the copies' warnings are the result's again
+        warnings.simplefilter("ignore")
+        res = reconstruct(figure, copies if several else copies[0], camera, keyframes, **kwargs)
+    return res.keypoints3d[:, res.figure.keypoint_index(names)]
+
+
+def _solve_copies(jobs: int, common, tasks) -> list[np.ndarray]:
+    """Every copy's keypoints, in the order of ``tasks``: here, or in ``jobs`` processes."""
+    if jobs == 1:
+        return [_solve_copy(common, t) for t in tasks]
+    try:
+        pickle.dumps(common)
+    except (pickle.PicklingError, TypeError, AttributeError) as exc:
+        raise InputError(f"with n_jobs={jobs} the solve's arguments go to other processes, and one of them cannot "
+                         f"({exc}); give n_jobs=1, or a callback defined at module level", field="n_jobs") from None
+    with ProcessPoolExecutor(max_workers=jobs) as pool:
+        return list(pool.map(_solve_copy, [common] * len(tasks), tasks))
+
+
+def _jobs(n_jobs, runs: int) -> int:
+    """The number of processes ``n_jobs`` asks for (scikit-learn's convention), at most ``runs``."""
+    if n_jobs is None:
+        return 1
+    if isinstance(n_jobs, bool) or not isinstance(n_jobs, int) or n_jobs == 0 or n_jobs < -1:
+        raise InputError(f"must be a whole number of processes (-1: one per CPU); got {n_jobs!r}", field="n_jobs")
+    cpus = os.cpu_count() or 1
+    return max(1, min(runs, cpus if n_jobs == -1 else n_jobs))
 
 
 def _number(x) -> float:
