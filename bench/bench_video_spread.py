@@ -33,25 +33,21 @@ REPO = Path(__file__).resolve().parents[1]
 
 import pinrecon as pr
 from pinrecon.io.calibration import load_cameras
+from pinrecon.io.trc import load_trc
+from pinrecon.layouts import COCO_17
 from pinrecon.metrics import pa_mpjpe
 from pinrecon.stability import drop_detections
 
 FOLDER = REPO / "examples" / "data" / "pose2sim_balancing"
 TRC = FOLDER / "S00_P00_T01_BalancingTrial_0-100.trc"
 CALIB = REPO / "tests" / "data" / "calibration" / "pose2sim" / "Calib_qualisys.toml"
-COCO12_TRC = {"left_shoulder": "LShoulder", "right_shoulder": "RShoulder", "left_elbow": "LElbow",
-              "right_elbow": "RElbow", "left_wrist": "LWrist", "right_wrist": "RWrist", "left_hip": "LHip",
-              "right_hip": "RHip", "left_knee": "LKnee", "right_knee": "RKnee", "left_ankle": "LAnkle",
-              "right_ankle": "RAnkle"}
+COCO12 = list(COCO_17[5:])  # the 12 body points: shoulders, elbows, wrists, hips, knees, ankles
 
 
 def truth() -> np.ndarray:
-    """(T, 12, 3) the triangulated body points of the TRC file, in its (Y up) axes."""
-    rows = TRC.read_text().splitlines()
-    names = [n for n in rows[3].split("\t")[2:] if n]
-    T = int(rows[2].split("\t")[2])
-    X = np.array([r.split("\t")[2 : 2 + 3 * len(names)] for r in rows[5 : 5 + T]], float).reshape(T, len(names), 3)
-    return X[:, [names.index(v) for v in COCO12_TRC.values()]]
+    """(T, 12, 3) the triangulated body points of the TRC file (metres, Z up)."""
+    m = load_trc(TRC, names="pinrecon")
+    return m.points[:, [m.names.index(n) for n in COCO12]]
 
 
 def main(argv=None):
@@ -88,7 +84,7 @@ def main(argv=None):
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
                 res = pr.reconstruct(fig, tr, camera, **kw)
-            P = res.keypoints3d[:, res.figure.keypoint_index(list(COCO12_TRC))]
+            P = res.keypoints3d[:, res.figure.keypoint_index(COCO12)]
             pa = pa_mpjpe(P, GG)
             out.setdefault(label, []).append(pa)
             print(f"| {label} | {seed} | {pa:.1f} | {time.perf_counter() - t0:.0f} |", flush=True)

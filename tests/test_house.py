@@ -144,7 +144,7 @@ LAYERS = [
                 "pinrecon.proportions", "pinrecon.io.bvh_format", "pinrecon.io.bvh_urdf", "pinrecon.io.bvh",
                 "pinrecon.io.coco", "pinrecon.io.openpose", "pinrecon.io.openpose_json", "pinrecon.io.mmpose",
                 "pinrecon.io.people", "pinrecon.io.detections", "pinrecon.io.asf", "pinrecon.joint_limits",
-                "pinrecon.io.tracks_json", "pinrecon.io.calibration", "pinrecon.io.results"]),
+                "pinrecon.io.tracks_json", "pinrecon.io.calibration", "pinrecon.io.results", "pinrecon.io.trc"]),
     ("rows and solver", ["pinrecon.rows", "pinrecon.weights", "pinrecon.banded", "pinrecon.solver"]),
     ("problem", ["pinrecon.problem", "pinrecon.contact"]),
     ("starts", ["pinrecon.starts", "pinrecon.planarity"]),

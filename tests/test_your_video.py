@@ -16,23 +16,21 @@ from conftest import REPO
 import pinrecon as pr
 from pinrecon.cli import main
 from pinrecon.io.bvh import load_bvh
+from pinrecon.io.trc import load_trc
+from pinrecon.layouts import COCO_17
 
 FOLDER = REPO / "examples" / "data" / "pose2sim_balancing"
 TRACKS = FOLDER / "cam01_json"
 TRC = FOLDER / "S00_P00_T01_BalancingTrial_0-100.trc"
-COCO12_TRC = {"left_shoulder": "LShoulder", "right_shoulder": "RShoulder", "left_elbow": "LElbow",
-              "right_elbow": "RElbow", "left_wrist": "LWrist", "right_wrist": "RWrist", "left_hip": "LHip",
-              "right_hip": "RHip", "left_knee": "LKnee", "right_knee": "RKnee", "left_ankle": "LAnkle",
-              "right_ankle": "RAnkle"}
+COCO12 = list(COCO_17[5:])  # the 12 body points: shoulders, elbows, wrists, hips, knees, ankles
 
 
-def _trc(path):
-    """(T, M, 3) marker positions and their names from a TRC file (tab-separated)."""
-    rows = path.read_text().splitlines()
-    names = [n for n in rows[3].split("\t")[2:] if n]
-    T = int(rows[2].split("\t")[2])
-    X = np.array([r.split("\t")[2 : 2 + 3 * len(names)] for r in rows[5 : 5 + T]], float)
-    return X.reshape(T, len(names), 3), names
+def _truth():
+    """(T, 12, 3) the triangulated body points of the TRC file, in metres, Z up, in the
+    calibration's world (``pinrecon.io.trc.load_trc``: checked against the file's own
+    numbers in tests/test_trc.py)."""
+    m = load_trc(TRC, names="pinrecon")
+    return m.points[:, [m.names.index(n) for n in COCO12]]
 
 
 @pytest.fixture(scope="module")
@@ -65,9 +63,8 @@ def test_against_pose2sims_four_camera_triangulation(your_video):
     single Gaussian's 141 passed it too); the gap to the lab (10 mm) is the point of the
     test's numbers."""
     res = pr.load_result(your_video / "result.npz")
-    X, names = _trc(TRC)
-    G = X[:, [names.index(v) for v in COCO12_TRC.values()]]
-    P = res.keypoints3d[:, res.figure.keypoint_index(list(COCO12_TRC))]
+    G = _truth()
+    P = res.keypoints3d[:, res.figure.keypoint_index(COCO12)]
     assert len(P) == len(G) == 100
     pa = pa_mpjpe_mm(P, G)
     assert str(res.extras["prior_model"]) == "human_pose_mixture"
@@ -111,13 +108,12 @@ def test_coco17_points_through_pose2sims_calibration_of_camera_1():
     tracks = tracks.select([n for n in tracks.names if n in fig.keypoint_names])
     assert len(tracks.names) == 17
     res = pr.reconstruct(fig, tracks, cam.camera)
-    X, names = _trc(TRC)
-    G = X[:, [names.index(v) for v in COCO12_TRC.values()]][:, :, [2, 0, 1]]  # TRC (Y, Z, X) -> Z up
-    P = res.keypoints3d[:, res.figure.keypoint_index(list(COCO12_TRC))]
+    G = _truth()
+    P = res.keypoints3d[:, res.figure.keypoint_index(COCO12)]
     pa = pa_mpjpe_mm(P, G)
     z_axis = cam.camera.R[2]  # depth along the line of sight: the camera's z (t adds the same to both ends)
     limbs = [("shoulder", "elbow"), ("elbow", "wrist"), ("hip", "knee"), ("knee", "ankle")]
-    idx = list(COCO12_TRC)
+    idx = COCO12
     flipped = counted = 0
     for side in ("left", "right"):
         for a, b in limbs:
@@ -135,7 +131,7 @@ def test_coco17_points_through_pose2sims_calibration_of_camera_1():
 
     s = stability(fig, tracks, cam.camera, result=res, runs=1, random_seed=2)
     copy = pr.reconstruct(fig, drop_detections(tracks, 0.01, 2), cam.camera)
-    P2 = copy.keypoints3d[:, copy.figure.keypoint_index(list(COCO12_TRC))]
+    P2 = copy.keypoints3d[:, copy.figure.keypoint_index(COCO12)]
     assert pa_mpjpe_mm(P2, G) > pa + 50.0, (pa_mpjpe_mm(P2, G), pa)
     idx = res.figure.keypoint_index(list(tracks.names))
     apart = pa_mpjpe_mm(copy.keypoints3d[:, idx], res.keypoints3d[:, idx])

@@ -272,13 +272,14 @@ def cmd_export(args) -> int:
         from .workbench.html_export import export_html
 
         print(export_html(args.result, args.html))
-        if not (args.bvh or args.csv):
+        if not (args.bvh or args.csv or args.trc):
             return 0
-    if not (args.bvh or args.csv):
-        print("pinrecon export: nothing to do: give --bvh and/or --csv", file=sys.stderr)
+    if not (args.bvh or args.csv or args.trc):
+        print("pinrecon export: nothing to do: give --bvh, --csv and/or --trc", file=sys.stderr)
         return 2
     for f in export_result(args.result, bvh=args.bvh, csv=args.csv, ground=not args.as_reconstructed, up=args.up,
-                           units=None if args.units == "own" else args.units, facing=args.facing):
+                           units=None if args.units == "own" else args.units, facing=args.facing, trc=args.trc,
+                           trc_names=args.trc_names):
         print(f)
     return 0
 
@@ -418,10 +419,14 @@ def build_parser() -> argparse.ArgumentParser:
     pl.add_argument("--fps", type=float, help="frame rate of --tracks that carry none (OpenPose folder, COCO JSON)")
     pl.set_defaults(func=cmd_plot)
 
-    e = sub.add_parser("export", help="export a result NPZ as BVH and/or CSV")
+    e = sub.add_parser("export", help="export a result NPZ as BVH, CSV and/or TRC")
     e.add_argument("result", help="result NPZ")
     e.add_argument("--bvh", help="output BVH file")
     e.add_argument("--csv", help="output CSV file (time, root pose, joint angles in degrees)")
+    e.add_argument("--trc", help="output TRC file (OpenSim's marker format: the 3D keypoints in metres)")
+    e.add_argument("--trc-names", default="file", choices=["file", "pose2sim"],
+                   help="TRC marker names: the figure's keypoint names (default) or Pose2Sim's (RShoulder, LKnee, "
+                   "...) where they mean the same point, for Pose2Sim's OpenSim models")
     e.add_argument("--up", default="y", choices=["y", "z"], help="up axis of the exported world (default y, BVH's)")
     e.add_argument("--units", default="m", choices=["m", "cm", "mm", "own"],
                    help="BVH length unit (default m; 'own': the figure's, e.g. CMU units)")

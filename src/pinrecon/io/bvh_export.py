@@ -29,9 +29,11 @@ from ..contact import Floor, FootContact, estimate_floor, foot_keypoints, sole_o
 from ..errors import InputError
 from ..result import load_result
 from ..rotations import continuous_euler
+from ..tracks import Markers
 from .bvh import bvh_unit, transform_motion, write_bvh
 from .bvh_urdf import urdf_figure_to_bvh
 from .csv_export import write_csv
+from .trc import write_trc, z_up_rotation
 
 __all__ = ["export_result", "ground_frame", "facing_direction", "result_floor", "urdf_figure_to_bvh",
            "continuous_euler"]
@@ -136,8 +138,10 @@ def export_result(
     up: str = "y",
     units: str | float | None = "m",
     facing: str | None = None,
+    trc: str | os.PathLike | None = None,
+    trc_names: str = "file",
 ) -> list[Path]:
-    """Export a result NPZ as BVH and/or CSV (the ``pinrecon export`` command).
+    """Export a result NPZ as BVH, CSV and/or TRC (the ``pinrecon export`` command).
 
     Parameters
     ----------
@@ -154,11 +158,16 @@ def export_result(
         ``None`` (the figure's own: CMU figures in CMU units, URDF figures in metres).
     facing : the axis the figure faces on the first frame (default ``"+z"`` with Y up,
         ``"-y"`` with Z up); ``""`` keeps the heading.
+    trc : TRC output path (:func:`pinrecon.io.trc.write_trc`): the 3D keypoints (one per
+        distinct position), in metres, in the same world with ``up`` the file's up axis
+        (OpenSim's Y by default; ``facing="+x"`` faces OpenSim's forward axis).
+    trc_names : ``"file"`` (the figure's keypoint names) or ``"pose2sim"`` (Pose2Sim's
+        names where they mean the same point, :data:`pinrecon.io.trc.POSE2SIM_NAMES`).
 
     Returns the paths written. Output folders are created.
     """
-    if bvh is None and csv is None:
-        raise InputError("nothing to do: give a BVH and/or a CSV output path", field="bvh/csv")
+    if bvh is None and csv is None and trc is None:
+        raise InputError("nothing to do: give a BVH, CSV and/or TRC output path", field="bvh/csv/trc")
     bvh_unit(units)
     result = load_result(npz_path)
     if result.figure is None:
@@ -180,4 +189,13 @@ def export_result(
             q = transform_motion(result.figure, q, *world)
         write_csv(csv, result, q)
         written.append(csv)
+    if trc is not None:
+        names = result.figure.distinct_keypoint_names
+        P = np.asarray(result.keypoints3d, float)[:, result.figure.keypoint_index(names)]
+        if world is not None:
+            P = P @ world[0].T + world[1]
+        # the coordinates go into the file as they are (the export's world, or the reconstruction's as BVH and
+        # CSV keep it): given to write_trc as the Z-up points it turns into them
+        P = P @ z_up_rotation(up).T
+        written.append(write_trc(trc, Markers(P, names, result.fps), up=up, names=trc_names))
     return written
