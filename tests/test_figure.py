@@ -389,3 +389,18 @@ def test_check_q_rejects_wrong_size(human):
         InputError, match=r"field 'q': expected configurations of size nq=43, got shape \(42,\)"
     ):
         human.keypoints(np.zeros(42))
+
+
+def test_a_pickled_figure_is_the_same_figure_without_its_workspace(any_figure):
+    """What ``pinrecon.stability(..., n_jobs=2)`` sends to another process: the same
+    keypoints at random configurations, a fresh Pinocchio workspace of its own, and not the
+    workspace's megabytes (94 MB for the CMU skeleton when it went along)."""
+    import pickle
+
+    blob = pickle.dumps(any_figure)
+    back = pickle.loads(blob)
+    assert len(blob) < 1_000_000, len(blob)
+    assert back.data is not any_figure.data and back.keypoint_names == any_figure.keypoint_names
+    for seed in range(3):
+        q = any_figure.random_configuration(seed)
+        np.testing.assert_array_equal(back.keypoints(q), any_figure.keypoints(q))
