@@ -128,9 +128,11 @@ def test_keyframes_on_many_frames_fix_the_focal_length_and_two_frames_do_not():
 
 def test_a_camera_placed_by_two_keyframes_says_its_focal_length_is_not_determined():
     """Issue 10's detector walk with an unknown camera and keyframes on the first and last
-    frame only gave 1464 px against a true 1200 and a report of "1910-2017 px at 95 %"
-    (the solve's profile holds the camera where the keyframes put it): now it says which
-    focal lengths the keyframes leave open, and warns."""
+    frame only. With the camera held where the two keyframes put it (before its pose became
+    an unknown of the solve): 1464 px against a true 1200, the camera 4.45 m from the true
+    one and MPJPE 367 mm in the clip's world. Now the tracks refine its place: 0.39 m and
+    60 mm, 1170 px, and the report, from the solve's own profile (the pose re-solved at
+    every focal length), says the focal length is not determined, and warns."""
     fig, Q = human_walk(60, 30.0)
     cam = perspective_side_camera(Q, 45.0, distance_m=6.0, f_px=F_TRUE, center=(640.0, 360.0))
     tracks = project_tracks(fig, Q, cam, BODY, fps=30.0, noise_px=1.0, seed=5)
@@ -141,22 +143,26 @@ def test_a_camera_placed_by_two_keyframes_says_its_focal_length_is_not_determine
         warnings.simplefilter("always")
         res = pr.reconstruct(pr.Figure.human(), tracks, AutoCamera(SIZE), keys, floor="none")
     rep = res.calibration["camera_auto"]["focal"]
-    assert res.calibration["camera_auto"]["pose"] == "from the point keyframes"
-    assert rep["determined"] is False and rep["keyframes"]["frames"] == 2
+    assert res.calibration["camera_auto"]["pose"] == "from the point keyframes, then refined by the solve with the tracks"
+    assert rep["determined"] is False and "keyframes" not in rep
     lo, hi = rep["interval_px"]
     assert lo <= F_TRUE <= hi and hi / lo > 1.2
     warned = [w for w in caught if issubclass(w.category, FocalLengthWarning)]
-    assert warned and "point keyframes (" in str(warned[0].message) and "NOT determined" in res.summary()
-    # keyframes on every 6th frame with 2 cm of noise fix it: determined, the interval the envelope of both
+    assert warned and "on more frames" in str(warned[0].message) and "NOT determined" in res.summary()
+    centre = -res.camera.R.T @ res.camera.t
+    assert np.linalg.norm(centre - (-cam.R.T @ cam.t)) < 0.6
+    E = res.keypoints3d[:, res.figure.keypoint_index(BODY)]
+    assert 1000 * np.linalg.norm(E - P, axis=-1).mean() < 80.0
+    # keyframes on every 6th frame with 2 cm of noise fix it: determined, the truth inside
     keys = pr.tracks.keyframes_from_points(list(range(0, 60, 6)), P + rng.normal(0.0, 0.02, P.shape), BODY, 0.02)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         res = pr.reconstruct(pr.Figure.human(), tracks, AutoCamera(SIZE), keys, floor="none")
     rep = res.calibration["camera_auto"]["focal"]
     lo, hi = rep["interval_px"]
-    assert rep["determined"] is True and rep["keyframes"]["frames"] == 10
-    assert rep["keyframes"]["interval_px"][0] >= lo and rep["keyframes"]["interval_px"][1] <= hi
-    assert lo <= F_TRUE <= hi and "point keyframes' own" in rep["message"]
+    assert rep["determined"] is True and lo <= F_TRUE <= hi and hi / lo < 1.15
+    E = res.keypoints3d[:, res.figure.keypoint_index(BODY)]
+    assert 1000 * np.linalg.norm(E - P, axis=-1).mean() < 20.0
 
 
 def test_a_focal_length_resting_on_an_unfamiliar_prior_is_doubted():

@@ -62,7 +62,7 @@ def setting():
     Q = np.stack([fig.integrate(q, 0.3 * rng.normal(size=fig.nv)) for q in Q])
     ortho = pr.Orthographic.from_view([0.3, -0.2, -1.0], scale=300.0, center=(500.0, 500.0))
     persp = pr.Perspective.look_at([0.5, 1.0, -4.0], [0.5, 0.0, 0.0])
-    g = np.r_[rng.normal(0.0, 0.1, props.n), 0.07]
+    g = np.r_[rng.normal(0.0, 0.1, props.n), 0.07, rng.normal(0.0, 0.05, 6)]  # log factors, log f, camera pose
     return fig, props, Q, ortho, persp, g
 
 
@@ -88,6 +88,12 @@ def _rows(fig, props, Q, ortho, persp):
         ),
         "measurement/distorted perspective+focal": Measurement2D(
             distorted, np.arange(T), k, uv_p, ones, intrinsics=CameraScale(distorted, n)
+        ),
+        "measurement/perspective+focal+pose": Measurement2D(
+            persp, np.arange(T), k, missing, 0.5 * ones, intrinsics=CameraScale(persp, n, pose_col=n + 1)
+        ),
+        "measurement/distorted perspective+focal+pose": Measurement2D(
+            distorted, np.arange(T), k, uv_p, ones, intrinsics=CameraScale(distorted, n, pose_col=n + 1)
         ),
         "points3d": Points3D([1, 3], k, P[[1, 3]] + 0.05, 0.02),
         "prior": GlobalPrior(np.arange(n), np.linspace(-0.1, 0.1, n), 0.1),
@@ -119,6 +125,8 @@ def _dense_g(block, n_g):
         "measurement/perspective, proportions only",
         "measurement/missing+confidence",
         "measurement/distorted perspective+focal",
+        "measurement/perspective+focal+pose",
+        "measurement/distorted perspective+focal+pose",
         "points3d",
         "prior",
         "contact velocity",
@@ -144,6 +152,8 @@ def test_global_jacobian_columns_match_finite_differences(setting, name):
     assert np.abs(J[:, : props.n]).max() > 0  # every kind here depends on the proportions
     if "+" in name or "missing" in name:
         assert np.abs(J[:, props.n]).max() > 0  # and on the camera scale
+    pose = np.abs(J[:, props.n + 1 :]).max(axis=0)
+    assert np.all(pose > 0) if "pose" in name else not pose.any()  # each of the six pose globals, or none
 
 
 def test_robust_measurement_gradient_in_the_globals_is_exact(setting):

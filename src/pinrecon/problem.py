@@ -21,6 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .cameras import Perspective
 from .errors import InputError, UnknownNameError
 from .io.calibration import CalibratedCamera
 from .figure_files import load_keypoint_map
@@ -60,6 +61,11 @@ __all__ = [
 #: what :func:`make_problem` can calibrate: nothing, the figure's segment lengths, the
 #: cameras' focal length (perspective) or scale (orthographic), or both
 CALIBRATE_MODES = ("none", "lengths", "camera", "lengths+camera")
+
+#: the weak prior on a camera's pose unknowns (``make_problem(camera_pose=True)``): radians
+#: of rotation, metres of shift; the point keyframes and the tracks place it, this only
+#: keeps the step bounded where they say little
+SIGMA_CAMERA_POSE = (0.5, 1.0)
 
 
 def check_calibrate(calibrate) -> str:
@@ -270,6 +276,8 @@ class ReconstructionProblem:
             if intr is not None:
                 what = "scale_px_per_m" if intr.name == "log_scale" else "focal_px"
                 cams[v.name] = {"quantity": what, "start": intr.value(np.zeros_like(g)), "fitted": intr.value(g)}
+                if intr.pose_col is not None:  # how far the solve moved the camera from its start
+                    cams[v.name].update(intr.pose_change(g))
         if cams:
             out["cameras"] = cams
         return out
@@ -533,6 +541,7 @@ def make_problem(
     log_factors0=None,
     sigma_proportions: float | None = None,
     sigma_camera: float | None = None,
+    camera_pose: bool = False,
 ) -> ReconstructionProblem:
     """Validate the inputs and build the rows of :func:`pinrecon.reconstruct`'s problem.
 
@@ -556,7 +565,12 @@ def make_problem(
     ``weights.sigma_proportions``, 0.1) around the start; ``"camera"`` makes every camera's log focal length (perspective) or log scale
     (orthographic) a global (one per camera, no prior unless ``sigma_camera``);
     ``"lengths+camera"`` both. The globals are ``g = (log factors, log camera scales)``;
-    ``problem.g0`` is their start.
+    ``problem.g0`` is their start. ``camera_pose`` (with ``"camera"`` in the mode; without
+    it the camera is held and this is ignored): six more globals move the camera
+    (:class:`~pinrecon.rows.CameraScale`: a rotation vector and a shift in its own axes,
+    from zero), held by a weak prior (:data:`SIGMA_CAMERA_POSE`); only for one perspective
+    camera with 3D point keyframes, which fix the world it is placed in (an InputError
+    otherwise).
     """
     weights = weights or Weights()
     mode = check_calibrate(calibrate)
@@ -576,6 +590,11 @@ def make_problem(
         unknown = [n for n in keypoints if n not in known]
         if unknown:
             raise UnknownNameError("track", unknown, sorted(known), field="keypoints")
+    camera_pose = bool(camera_pose) and "camera" in mode  # a problem that calibrates no camera holds it
+    if camera_pose and not (len(pairs) == 1 and isinstance(pairs[0][2], Perspective)
+                            and has_point_keyframes(keyframes)):
+        raise InputError("the camera's pose is an unknown only for one perspective camera with 3D point keyframes "
+                         "(they fix the world it is placed in)", field="camera_pose")
     views, used = [], []
     for (name, trk, cam), f in zip(pairs, factors):
         names = list(trk.names) if keypoints is None else [n for n in keypoints if len(pairs) == 1 or n in trk.names]
@@ -583,7 +602,8 @@ def make_problem(
         shared = shared_keypoints(figure, sub.names, trk.source)
         sub = sub.select(shared)
         used += [n for n in shared if n not in used]
-        intr = CameraScale(cam, n_p + len(views)) if "camera" in mode else None
+        pose_col = n_p + len(pairs) if camera_pose else None
+        intr = CameraScale(cam, n_p + len(views), pose_col=pose_col) if "camera" in mode else None
         views.append(View(name, sub, cam, measurement_rows(figure, sub, cam, f, weights, intr), f))
     if keyframes is not None:
         keyframes.validate(figure, pairs[0][1].T)
@@ -604,6 +624,10 @@ def make_problem(
         if sigma_camera is not None:
             rows.append(GlobalPrior(cols, 0.0, sigma_camera, name="prior_camera"))
         names += [f"{v.name}.{v.measurement.intrinsics.name}" for v in views]
+    if camera_pose:
+        cols = n_p + len(views) + np.arange(6)
+        rows.append(GlobalPrior(cols, 0.0, np.repeat(SIGMA_CAMERA_POSE, 3), name="prior_camera_pose"))
+        names += [f"{views[0].name}.{n}" for n in CameraScale.POSE_NAMES]
     if names:
         g0 = np.r_[theta0, np.zeros(len(names) - n_p)]
     first = views[0]

@@ -178,6 +178,18 @@ def _camera_and_mode(figure, tracks, camera, keyframes, calibrate, image_size=No
     return camera, mode, None
 
 
+def _pose_unknown(auto: dict | None, mode: str, camera, keyframes) -> bool:
+    """Whether the auto camera's pose is a global unknown of the one batch solve: a
+    perspective auto camera that the 3D point keyframes placed (:func:`~pinrecon.starts.
+    camera_auto.camera_from_keyframes`: they fix the world, so where the camera stands in it
+    is observable, and the tracks of every frame say more about it than the keyframes' few
+    points), its focal length calibrated. Long clips solved in windows keep it where the
+    keyframes put it (a window without a keyframe cannot see it)."""
+    return (auto is not None and auto.get("projection") == "perspective" and "camera" in str(mode)
+            and has_point_keyframes(keyframes) and "keyframe_focal" in auto
+            and not np.allclose(np.asarray(camera.t, float), 0.0))
+
+
 def build_problem(
     figure,
     tracks: Tracks | Sequence[Tracks],
@@ -339,6 +351,10 @@ def reconstruct(
                                                   mirrors=_mirrors(problem, init)), auto)
         result.extras.update(switch_extras(*switch))
         return result
+    if _pose_unknown(auto, mode, camera, keyframes):  # the keyframes placed the auto camera: its place refined too
+        inputs["camera_pose"] = True
+        problem = make_problem(**inputs, calibrate=mode)
+        auto = {**auto, "pose": "from the point keyframes, then refined by the solve with the tracks"}
     if not off and floor is None and contact is None and default_feet(figure, tracks, keypoints):
         floor = contact = "auto"
     lengths = bool(lengths_from_tracks) and _lengths_measurable(auto and auto["projection"]) and _cold_start(init)

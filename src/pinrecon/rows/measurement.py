@@ -9,7 +9,8 @@ pixels) is applied by iteratively reweighting each point's two rows.
 Global unknowns: with the figure's proportions in the state, ``d r / d theta =
 sqrt(w) / sigma_px * d pi / d X * d p_k / d theta``; with ``intrinsics`` (a
 :class:`pinrecon.rows.CameraScale`) the camera is the one at ``g`` and
-``d r / d log f = sqrt(w) / sigma_px * (uv - c)``.
+``d r / d log f = sqrt(w) / sigma_px * (uv - c)``, and with its pose unknowns the pose's
+columns (:meth:`~pinrecon.rows.CameraScale.jacobian`).
 """
 
 from __future__ import annotations
@@ -108,17 +109,16 @@ class Measurement2D(RowKind):
             J = state.point_jacobians(slots, self.keypoints, A, scale, cols)
             J = J.reshape(N, 1, 2 * M, -1)
             n_p = len(state.proportion_cols) if state.has_global_points else 0
-            focal = self.intrinsics is not None and state.g is not None
-            if n_p or focal:  # (N, M, 2, globals): the proportions' columns, then the camera's
-                Jg = np.empty((N, M, 2, n_p + focal))
+            cam_cols = self.intrinsics.cols if self.intrinsics is not None and state.g is not None else np.zeros(0, int)
+            if n_p or len(cam_cols):  # (N, M, 2, globals): the proportions' columns, then the camera's
+                Jg = np.empty((N, M, 2, n_p + len(cam_cols)))
                 if n_p:
                     state.global_point_jacobians(slots, self.keypoints, A, out=Jg[..., :n_p])
-                if focal:
-                    Jg[..., n_p] = self.intrinsics.d_uv(uv)
+                if len(cam_cols):
+                    Jg[..., n_p:] = self.intrinsics.jacobian(state.g, uv, d_uv, P)
                 Jg *= scale[..., None, None]
                 Jg = Jg.reshape(N, 2 * M, -1)
-                gcols = np.r_[np.asarray(state.proportion_cols, dtype=int)[:n_p], [self.intrinsics.col] if focal else []]
-                gcols = gcols.astype(int)
+                gcols = np.r_[np.asarray(state.proportion_cols, dtype=int)[:n_p], cam_cols].astype(int)
         cols = self._columns(state.figure) if jacobian else np.arange(state.figure.nv)
         return RowBlock(self.frames[:, None], r, J, cols, self.name, cost_value=cost, Jg=Jg, gcols=gcols)
 

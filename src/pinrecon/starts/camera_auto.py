@@ -22,7 +22,9 @@ camera that filmed it, so the unknowns that are not observable are fixed by conv
   the floor under the feet afterwards. With point keyframes (3D positions in a world of
   the user's) the camera's rotation, position and focal length are estimated from the
   keyframes and the tracks at those frames (:func:`camera_from_keyframes`: a direct
-  linear transform refined on the reprojection error).
+  linear transform refined on the reprojection error); :func:`pinrecon.reconstruct`
+  then refines the pose with the tracks of every frame, as six more globals of the batch
+  solve (``docs/globals.md``, section 4).
 
 What stays unobservable (``docs/globals.md``, section 4): with neither keyframes nor a
 known figure size, overall size against distance (perspective) or scale
@@ -423,9 +425,12 @@ class FocalReport:
     determined: bool
     tolerance: float
     threshold: float = PROFILE_THRESHOLD
-    #: with the camera placed by point keyframes: their own profile (:func:`keyframe_focal_interval`,
-    #: ``{"interval_px", "bounded", "points", "frames"}``; the solve's holds the camera where they put
-    #: it): the interval is then the envelope of both, and not determined when theirs is too wide
+    #: with the camera placed by point keyframes and held there (a solve that does not refine its
+    #: pose, :func:`pinrecon.reconstruct._pose_unknown`): their own profile
+    #: (:func:`keyframe_focal_interval`, ``{"interval_px", "bounded", "points", "frames"}``): the
+    #: interval is then the envelope of both, and not determined when theirs is too wide. With its
+    #: pose refined by the solve, the solve's profile (the pose re-solved at every focal length,
+    #: the keyframe rows in the cost) says it alone
     keyframes: dict | None = None
 
     def message(self) -> str:
@@ -451,7 +456,8 @@ class FocalReport:
                 f"{self.start_px:.0f} px) but the MAP cost profile rules out nothing from {lo:.0f} to {hi:.0f} px "
                 f"(it moves by {max(costs) - min(costs):.1f} over that range, lowest at {low_f:.0f} px, and is not "
                 f"one valley {self.threshold:g} deep within {100 * self.tolerance:.0f} % of the fit){tail}. "
-                "Give a calibrated camera (--camera FILE) or 3D keyframes for a metric focal length")
+                "Give a calibrated camera (--camera FILE) or 3D keyframes (on more frames, if some are given) for a "
+                "metric focal length")
 
     def to_dict(self) -> dict:
         return {"focal_px": self.focal_px, "start_px": self.start_px,
@@ -662,7 +668,8 @@ def settle_focal(problem, res, auto: dict | None, *, options=None, rounds: int =
         solves = _profile_solves(problem, res, steps, options)
     rep = _report(problem, res, solves, threshold, tolerance)
     kf = auto.get("keyframe_focal")
-    if kf is not None and rep.determined:  # the camera's placement by the keyframes is uncertain too
+    placed = _focal_of(problem, res)[0].pose_col is None  # held where the keyframes put it, not refined
+    if kf is not None and placed and rep.determined:  # the camera's placement by the keyframes is uncertain too
         (lo, hi), (klo, khi) = rep.interval_px, kf["interval_px"]
         wide = not (all(kf["bounded"]) and klo >= rep.focal_px / (1.0 + tolerance) and khi <= rep.focal_px * (1.0 + tolerance))
         rep = dataclasses.replace(rep, interval_px=(klo, khi) if wide else (min(lo, klo), max(hi, khi)),
