@@ -174,6 +174,12 @@ def test_a_camera_pose_unknown_needs_keyframes_and_a_perspective_camera(coco_wal
     assert p.global_names[-6:] == [f"camera1.{n}" for n in ("rot_x", "rot_y", "rot_z", "shift_x_m", "shift_y_m",
                                                            "shift_z_m")]
     assert make_problem(fig, tracks, cam, Keyframes(list(kf)), calibrate="none", camera_pose=True).g0 is None
+    from pinrecon.reconstruct import build_problem  # the unsolved problem of reconstruct: the same unknowns
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        assert build_problem(fig, tracks, AutoCamera(SIZE), kf).problem.global_names[-6:] == p.global_names[-6:]
+        assert "camera1.rot_x" not in build_problem(fig, tracks, AutoCamera(SIZE)).problem.global_names
     ortho = pr.Orthographic.from_view([0.3, 0.0, 1.0], scale=300.0, center=(600.0, 350.0))
     for camera, keys in ((cam, None), (ortho, Keyframes(list(kf)))):
         with pytest.raises(pr.InputError) as e:

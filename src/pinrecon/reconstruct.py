@@ -206,9 +206,9 @@ def build_problem(
 ) -> Setup:
     """The problem and its start, unsolved; see :func:`reconstruct` (solve it with
     ``solve(setup.problem, setup.q0, active=setup.active, g0=setup.g0)``)."""
-    camera, mode, _ = _camera_and_mode(figure, tracks, camera, keyframes, calibrate, image_size)
+    camera, mode, auto = _camera_and_mode(figure, tracks, camera, keyframes, calibrate, image_size)
     problem = make_problem(figure, tracks, camera, keyframes, fps_out=fps_out, weights=weights, keypoints=keypoints,
-                           calibrate=mode)
+                           calibrate=mode, camera_pose=_pose_unknown(auto, mode, camera, keyframes))
     q0 = initial_trajectory(problem, _start_name(init, seed))
     return Setup(problem, q0, problem.active, problem.measurement, problem.fps, problem.camera, problem.g0)
 
