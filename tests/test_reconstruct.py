@@ -17,6 +17,7 @@ from pinrecon.errors import InputError
 from pinrecon.synthetic import (
     body_keypoints,
     bundled_motion,
+    human_walk,
     noisy_markers,
     point_keyframes,
     project_tracks,
@@ -206,6 +207,46 @@ def test_markers_are_smoothed_and_gap_filled(walk):
 
 
 # ----------------------------------------------------------------------------- bad input
+def test_markers_fit_the_generic_humans_lengths_to_a_subject_of_other_proportions():
+    """A subject made from ``Figure.human()`` with known segment factors (thighs 12 % long,
+    forearms 10 % short, a pelvis 15 % wide, ...) walks; its 12 body points as 1 cm noisy
+    markers (16 mm from the truth on average). ``reconstruct_markers`` with the generic
+    human fits the limbs' and the pelvis's factors (by default, for the generic human) and
+    lands 9.8 mm from the subject's points; held at the generic proportions
+    (``calibrate="none"``), 25.5 mm. The trunk's and the shoulders' factors are not asserted:
+    the spine's and clavicles' joints reach the same shoulder points with other lengths
+    (fitted 0.98 and 1.00 against 1.08 and 0.92, the shoulders 2 mm apart from the truth's)."""
+    from pinrecon.layouts import COCO_17
+    from pinrecon.proportions import Proportions
+
+    fig, q = human_walk(60, 30.0)
+    props = Proportions.default(fig)
+    true = {"thigh": 1.12, "shank": 1.05, "upper_arm": 0.95, "forearm": 0.90, "pelvis_width": 1.15,
+            "shoulder_width": 0.92, "trunk": 1.08}
+    subject = props.calibrated_figure(np.log([true.get(n, 1.0) for n in props.names]))
+    names = list(COCO_17[5:])
+    markers = noisy_markers(subject, q, names, fps=30.0, noise_m=0.01, missing=0.05, seed=3)
+    P = subject.keypoints(q)[:, subject.keypoint_index(names)]
+    fitted = pr.reconstruct_markers(pr.Figure.human(), markers)
+    held = pr.reconstruct_markers(pr.Figure.human(), markers, calibrate="none")
+
+    def points(res):
+        return res.keypoints3d[:, res.figure.keypoint_index(names)]
+
+    assert fitted.calibration["mode"] == "lengths" and not held.calibration
+    got = fitted.calibration["factors"]
+    for n in ("thigh", "shank", "upper_arm", "forearm", "pelvis_width"):
+        assert got[n] == pytest.approx(true[n], abs=0.01), (n, got[n], true[n])
+    err = {k: 1000.0 * np.linalg.norm(points(r) - P, axis=-1).mean() for k, r in (("fitted", fitted), ("held", held))}
+    assert err["fitted"] < 11.0 and err["held"] > 20.0, err
+    E = points(fitted)
+    width = np.linalg.norm(E[:, 0] - E[:, 1], axis=-1).mean() - np.linalg.norm(P[:, 0] - P[:, 1], axis=-1).mean()
+    assert abs(width) < 0.005
+    with pytest.raises(InputError) as e:
+        pr.reconstruct_markers(pr.Figure.human(), markers, calibrate="camera")
+    assert e.value.field == "calibrate"
+
+
 def test_tracks_sharing_no_keypoint_with_the_figure(walk):
     fig, q, fps, names = walk
     tracks = pr.Tracks(np.zeros((5, 2, 2)), ["nose", "left_eye"], fps=30.0, source="t.json")

@@ -96,7 +96,8 @@ def _human_poses(clip):
     P = P * (_leg(rest, names) / _leg(P, names))  # the figure's leg length, as tools/fit_pose_prior.py
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        res = pr.reconstruct_markers(FIG, pr.Markers(P, names, fps / step), weights=Weights(pose_prior=None))
+        res = pr.reconstruct_markers(FIG, pr.Markers(P, names, fps / step), weights=Weights(pose_prior=None),
+                                     calibrate="none")
     return res.q
 
 

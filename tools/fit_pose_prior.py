@@ -76,7 +76,8 @@ def fit_clip(path, fig, fps_out=30.0):
     P = P * (leg_length(rest, names) / leg_length(P, names))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        res = pr.reconstruct_markers(fig, pr.Markers(P, names, m.fps / step), weights=Weights(pose_prior=None))
+        res = pr.reconstruct_markers(fig, pr.Markers(P, names, m.fps / step), weights=Weights(pose_prior=None),
+                                     calibrate="none")
     err = np.linalg.norm(res.keypoints3d[:, fig.keypoint_index(names)] - P, axis=-1).mean()
     return res.q, float(err)
 

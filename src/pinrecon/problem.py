@@ -83,12 +83,14 @@ def has_point_keyframes(keyframes) -> bool:
     return any(getattr(k, "points", None) for k in keyframes or ())
 
 
-def default_calibrate(figure, keyframes=None, lengths_from_tracks: bool = False, several_views: bool = False) -> str:
+def default_calibrate(figure, keyframes=None, lengths_from_tracks: bool = False, several_views: bool = False,
+                      markers: bool = False) -> str:
     """The default of ``calibrate``: ``"lengths"`` for the generic human (``meta["generic"] ==
     "human"``; a figure already calibrated carries ``meta["proportions"]``) when there is 3D
     information (a point keyframe, or several given cameras, which see depth), or when the
     limb lengths are measured from the tracks first (``lengths_from_tracks``: one given
-    camera, one batch solve, see :func:`pinrecon.reconstruct`); ``"none"`` otherwise, and
+    camera, one batch solve, see :func:`pinrecon.reconstruct`), or when the figure is fitted
+    to 3D markers (``markers``, :func:`pinrecon.reconstruct_markers`); ``"none"`` otherwise, and
     for any other figure (a BVH's own skeleton, a robot, a calibrated figure saved for
     reuse). Why: from one view a segment's length trades off against its depth, and
     without any 3D point or measured start the prior around the generic proportions does
@@ -97,7 +99,7 @@ def default_calibrate(figure, keyframes=None, lengths_from_tracks: bool = False,
     meta = getattr(figure, "meta", None) or {}
     if meta.get("generic") != "human" or "proportions" in meta:
         return "none"
-    if has_point_keyframes(keyframes) or several_views:
+    if has_point_keyframes(keyframes) or several_views or markers:
         return "lengths"
     return "lengths" if lengths_from_tracks else "none"
 
@@ -645,11 +647,25 @@ def make_marker_problem(
     *,
     fps_out: float | None = None,
     weights: Weights | None = None,
+    calibrate: str | None = "none",
+    proportions: Proportions | None = None,
 ) -> ReconstructionProblem:
     """Rows of :func:`pinrecon.reconstruct_markers`: 3D marker rows (dropped frames are
     missing), limits, smoothing, posture and keyframes. ``problem.markers`` keeps the
-    markers restricted to the figure's keypoints."""
+    markers restricted to the figure's keypoints. ``calibrate="lengths"`` makes the
+    figure's segment scale factors global unknowns as :func:`make_problem` does (the
+    markers measure them in metres), with the prior ``weights.sigma_proportions``;
+    ``"none"`` keeps the figure as given (there is no camera to calibrate)."""
     weights = weights or Weights()
+    mode = check_calibrate(calibrate)
+    if "camera" in mode:
+        raise InputError(f"3D markers have no camera to calibrate: give 'lengths' or 'none', got {calibrate!r}",
+                         field="calibrate")
+    props = None
+    if mode == "lengths":
+        props = Proportions.default(figure) if proportions is None else proportions
+        if props.figure is not figure:
+            raise InputError("the proportions were built for another figure", field="proportions")
     factor = upsample_factor(markers.fps, fps_out)
     T = (markers.T - 1) * factor + 1
     fps = markers.fps * factor
@@ -669,7 +685,11 @@ def make_marker_problem(
     if keyframes is not None:
         keyframes.validate(figure, markers.T)
         rows += keyframe_rows(figure, keyframes, factor)
+    g0, names = None, []
+    if props is not None:
+        rows.append(GlobalPrior(np.arange(props.n), 0.0, weights.sigma_proportions, name="prior_proportions"))
+        g0, names = np.zeros(props.n), list(props.names)
     return ReconstructionProblem(
         figure, T, rows, fps=fps, factor=factor, keyframes=keyframes, weights=weights, smoothing=smoothing,
-        markers=sub,
+        markers=sub, proportions=props, g0=g0, global_names=names, calibrate=mode,
     )

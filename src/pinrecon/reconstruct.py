@@ -441,12 +441,24 @@ def reconstruct_markers(
     init: np.ndarray | None = None,
     options: SolverOptions | None = None,
     callback: Callable | None = None,
+    calibrate: str | None = None,
 ) -> Result:
     """Fit the figure to noisy 3D markers with dropped frames (motion-capture smoothing
-    and gap filling): 3D point rows, limits and smoothing in one batch solve."""
-    problem = make_marker_problem(figure, markers, keyframes, fps_out=fps_out, weights=weights)
+    and gap filling): 3D point rows, limits and smoothing in one batch solve.
+
+    ``calibrate``: ``"lengths"`` fits the figure's segment lengths to the markers too (its
+    proportions as global unknowns, :func:`pinrecon.problem.make_marker_problem`); the
+    result's ``figure`` is then the fitted one and ``calibration`` says by how much.
+    ``"none"`` keeps the figure as given. Default: ``"lengths"`` for the generic human
+    (:meth:`Figure.human <pinrecon.Figure.human>`, not yet calibrated), whose proportions
+    are nobody's, ``"none"`` for any other figure (a BVH's own skeleton, a robot). On
+    Pose2Sim's triangulated balancing trial (``pinrecon.io.trc.load_trc``) the mean
+    distance from its 13 COCO-17 points went from 34.8 mm to 17.7 with the lengths fitted.
+    """
+    mode = default_calibrate(figure, keyframes, markers=True) if calibrate is None else calibrate
+    problem = make_marker_problem(figure, markers, keyframes, fps_out=fps_out, weights=weights, calibrate=mode)
     q0 = initial_trajectory(problem, "markers" if init is None else init)
-    res = solve(problem, q0, options, callback)
+    res = solve(problem, q0, options, callback, g0=problem.g0)
     return _package(problem, res)
 
 

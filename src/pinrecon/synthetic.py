@@ -188,7 +188,8 @@ def _human_walk_cycle(fps: float):
     names = list(HUMAN_FROM_CMU)
     P = bfig.keypoints(bq)[:, bfig.keypoint_index([HUMAN_FROM_CMU[n] for n in names])]
     # the rest-pose posture prior: a ground truth made from the clip, not from the pose prior
-    res = reconstruct_markers(human, Markers(P, names, fps), weights=Weights(sigma_markers_m=0.02, pose_prior=None))
+    res = reconstruct_markers(human, Markers(P, names, fps), weights=Weights(sigma_markers_m=0.02, pose_prior=None),
+                              calibrate="none")
     q = res.q
     # most repeatable cycle of 0.8 - 1.4 s: closest joint angles and joint velocities
     n = len(q)
