@@ -194,8 +194,8 @@ def export_result(
         P = np.asarray(result.keypoints3d, float)[:, result.figure.keypoint_index(names)]
         if world is not None:
             P = P @ world[0].T + world[1]
-        # the coordinates go into the file as they are (the export's world, or the reconstruction's as BVH and
-        # CSV keep it): given to write_trc as the Z-up points it turns into them
+        # these coordinates go into the file as they are (the export's world, or the reconstruction's as BVH and
+        # CSV keep it); write_trc turns pinrecon's Z-up points to ``up``, so hand it them turned the other way
         P = P @ z_up_rotation(up).T
         written.append(write_trc(trc, Markers(P, names, result.fps), up=up, names=trc_names))
     return written
