@@ -144,3 +144,20 @@ def test_the_generic_human_fitted_to_pose2sims_triangulation():
          for k, r in (("fitted", fitted), ("held", held))}
     assert d["fitted"] < 20.0 and d["held"] > 30.0, d
     assert fitted.calibration["factors"]["thigh"] == pytest.approx(0.94, abs=0.03)  # a shorter subject's thighs
+
+
+def test_fit_markers_command_writes_a_result_and_says_what_it_left_out(tmp_path, capsys):
+    """``pinrecon fit-markers``: Pose2Sim's TRC in, the generic human fitted (its lengths too),
+    a result NPZ that exports; Pose2Sim's Neck and Head left out with a warning, not guessed."""
+    out = tmp_path / "r.npz"
+    assert main(["fit-markers", "--markers", str(TRIAL), "--figure", "human", "--out", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert "markers Neck, Head not used" in err and "reprojection error" not in err
+    assert "poses unlike the pose prior" not in err  # 3D markers measure the depths the prior would guess
+    res = pr.load_result(out)
+    m = load_trc(TRIAL, names="pinrecon")
+    names = ["left_shoulder", "right_knee", "left_big_toe", "right_heel"]
+    d = res.keypoints3d[:, res.figure.keypoint_index(names)] - m.points[:, [m.names.index(n) for n in names]]
+    assert 1000 * np.linalg.norm(d, axis=-1).mean() < 30.0
+    assert res.calibration["mode"] == "lengths"
+    assert main(["export", str(out), "--bvh", str(tmp_path / "m.bvh")]) == 0

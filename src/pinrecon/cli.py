@@ -160,6 +160,46 @@ def cmd_reconstruct(args) -> int:
     return 0
 
 
+def cmd_fit_markers(args) -> int:
+    from .figure import Figure
+    from .io.trc import POSE2SIM_AMBIGUOUS, load_trc
+    from .layouts import human_map_for_names
+    from .problem import Weights
+    from .reconstruct import reconstruct_markers
+    from .solver import SolverOptions
+    from .tracks import Markers, load_keyframes
+
+    markers = load_trc(args.markers, up=args.up, names="pinrecon")
+    unsure = [n for n in markers.names if n in POSE2SIM_AMBIGUOUS]
+    if unsure:  # said, not guessed: which point they are depends on the skeleton that wrote them
+        warnings.warn(f"markers {', '.join(unsure)} not used: in Pose2Sim's files their point depends on the "
+                      "skeleton (Neck is the top of the neck in HALPE_26 and BODY_25B, the shoulders' midpoint in "
+                      "BODY_25); rename them in the file to use them", stacklevel=2)
+        keep = [i for i, n in enumerate(markers.names) if n not in POSE2SIM_AMBIGUOUS]
+        markers = Markers(markers.points[:, keep], [markers.names[i] for i in keep], markers.fps, markers.source)
+    if args.figure == "human" and not args.keypoints:  # the bundled map carrying most of the markers' names
+        fig = Figure.human(human_map_for_names(markers.names))
+        if args.limits:
+            fig = fig.with_limits(args.limits)
+    else:
+        fig = _figure_from_args(args)
+    kf = load_keyframes(args.keyframes) if args.keyframes else None
+    progress = _Progress(args.quiet, args.max_iterations)
+    res = reconstruct_markers(fig, markers, kf, fps_out=args.fps_out, weights=Weights(sigma_markers_m=args.sigma_m),
+                              options=SolverOptions(max_iterations=args.max_iterations), callback=progress,
+                              calibrate=args.calibrate)
+    progress.close()
+    res.save(args.out)
+    written = [args.out]
+    if args.save_figure:
+        written += res.save_figure(args.save_figure)
+    if not args.quiet:
+        print(res.summary(), file=sys.stderr)
+        for path in written:
+            print(f"wrote {path}", file=sys.stderr)
+    return 0
+
+
 def _auto_camera_from_args(args):
     """The :class:`~pinrecon.starts.camera_auto.AutoCamera` of ``--camera auto`` (or
     ``auto:orthographic``), ``None`` for camera files; auto with several --tracks, or
@@ -460,6 +500,28 @@ def build_parser() -> argparse.ArgumentParser:
     ed.add_argument("--port", type=int, default=8080, help="port (default 8080)")
     ed.add_argument("--no-browser", action="store_true", help="do not open a browser (servers)")
     ed.set_defaults(func=cmd_edit)
+
+    fm = sub.add_parser("fit-markers", help="fit a figure to 3D markers (a TRC file: OpenSim, Pose2Sim's "
+                        "triangulation), smoothing them and filling their gaps")
+    fm.add_argument("--markers", required=True, help="TRC file (metres, centimetres or millimetres)")
+    fm.add_argument("--up", default="y", choices=["x", "y", "z"], help="the file's up axis (default y, OpenSim's)")
+    fm.add_argument("--figure", required=True, help="'human', a URDF file, or a BVH file (its skeleton)")
+    fm.add_argument("--keypoints", help="keypoint map JSON, or for 'human' a bundled map (default: the map carrying "
+                    "most of the markers' names, Pose2Sim's renamed: RShoulder is right_shoulder)")
+    fm.add_argument("--length-scale", type=float, default=1.0, help="metres per BVH unit (CMU: 0.056444)")
+    fm.add_argument("--lock", nargs="*", help="BVH joints to weld (zero rotation)")
+    fm.add_argument("--limits", help="joint limits JSON, or a CMU ASF skeleton")
+    fm.add_argument("--keyframes", help="keyframes JSON")
+    fm.add_argument("--fps-out", type=float, help="reconstruction rate (integer multiple of the markers' rate)")
+    fm.add_argument("--calibrate", choices=["none", "lengths"],
+                    help="fit the figure's segment lengths to the markers too (default: lengths for 'human', "
+                    "none for other figures)")
+    fm.add_argument("--sigma-m", type=float, default=0.01, help="marker noise, metres (default 0.01)")
+    fm.add_argument("--max-iterations", type=int, default=100)
+    fm.add_argument("--save-figure", metavar="FILE.urdf", help="write the (fitted) figure's URDF and keypoint map")
+    fm.add_argument("--out", required=True, help="result NPZ")
+    fm.add_argument("--quiet", action="store_true", help="no progress output")
+    fm.set_defaults(func=cmd_fit_markers)
 
     li = sub.add_parser("links", help="discover rigid links and hinges in 2D tracks (planarity)")
     li.add_argument("tracks", help="tracks JSON/NPZ, OpenPose folder or COCO JSON")

@@ -552,7 +552,8 @@ def _package(problem: ReconstructionProblem, res: SolveResult, auto: dict | None
         observed[meas.frames] = True
     with np.errstate(invalid="ignore", divide="ignore"):
         err = np.where(err_n > 0, err_sum / np.maximum(err_n, 1), np.nan)
-    unfamiliar = unfamiliar_poses(problem, Q)  # where the pose prior extrapolates
+    # where the pose prior extrapolates, and limb depths from 2D with it (3D markers measure them)
+    unfamiliar = unfamiliar_poses(problem, Q) if getattr(problem, "markers", None) is None else None
     if unfamiliar is not None:  # ... and with it an auto camera's focal length, which one view owes to the prior
         auto = doubt_focal(auto, unfamiliar.share, limit=SWITCH_SHARE)
     result = Result(

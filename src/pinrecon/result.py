@@ -114,10 +114,9 @@ class Result:
     def summary(self) -> str:
         s = self.solve
         err = np.nanmean(self.reprojection_error_px) if np.any(np.isfinite(self.reprojection_error_px)) else float("nan")
-        lines = [
-            f"{len(self.times)} frames at {self.fps:g} fps, figure {self.figure.name!r} (nv={self.figure.nv})",
-            f"reprojection error {err:.3f} px (mean over observed points)",
-        ]
+        lines = [f"{len(self.times)} frames at {self.fps:g} fps, figure {self.figure.name!r} (nv={self.figure.nv})"]
+        if np.isfinite(err) or self.cameras:  # a fit to 3D markers has no image to reproject into
+            lines.append(f"reprojection error {err:.3f} px (mean over observed points)")
         per = self.reprojection_error_px_per_camera
         if per is not None and len(self.cameras) > 1:
             for name, e in zip(self.camera_names, per):

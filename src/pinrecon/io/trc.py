@@ -40,7 +40,7 @@ from ..errors import InputError
 from ..tracks import Markers
 from .atomic import atomic_write_text
 
-__all__ = ["POSE2SIM_NAMES", "load_trc", "write_trc", "z_up_rotation"]
+__all__ = ["POSE2SIM_AMBIGUOUS", "POSE2SIM_NAMES", "load_trc", "write_trc", "z_up_rotation"]
 
 #: Pose2Sim's and OpenPose's names of the points whose meaning every skeleton shares ->
 #: pinrecon's names (:mod:`pinrecon.layouts`).
@@ -52,6 +52,10 @@ POSE2SIM_NAMES = {
     "RBigToe": "right_big_toe", "LBigToe": "left_big_toe", "RSmallToe": "right_small_toe",
     "LSmallToe": "left_small_toe", "RHeel": "right_heel", "LHeel": "left_heel",
 }
+#: Pose2Sim's names whose point depends on the skeleton, which the file does not name: ``Neck``
+#: is the top of the neck (pinrecon's ``upper_neck``) in HALPE_26 and BODY_25B but the
+#: shoulders' midpoint (``neck``) in BODY_25; ``Head`` and ``Hip`` likewise
+POSE2SIM_AMBIGUOUS = ("Neck", "Head", "Hip")
 _UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001}
 _AXES = {"x": 0, "y": 1, "z": 2}
 
