@@ -147,11 +147,18 @@ def cmd_reconstruct(args) -> int:
                   "left out (--stability)", file=sys.stderr)
         res.extras.update(stability(fig, tracks, cam, kf, result=res, runs=args.stability, n_jobs=args.jobs,
                                     **kw).to_extras())
+    return _save_and_report(res, args)
+
+
+def _save_and_report(res, args) -> int:
+    """Write the result (``--out``), the fitted figure (``--save-figure``) and, where the
+    command has it, the camera (``--save-camera``); then the summary and the files written,
+    unless ``--quiet``."""
     res.save(args.out)
     written = [args.out]
     if args.save_figure:
         written += res.save_figure(args.save_figure)
-    if args.save_camera:
+    if getattr(args, "save_camera", None):
         written += _save_cameras(res, args.save_camera)
     if not args.quiet:
         print(res.summary(), file=sys.stderr)
@@ -161,9 +168,7 @@ def cmd_reconstruct(args) -> int:
 
 
 def cmd_fit_markers(args) -> int:
-    from .figure import Figure
     from .io.trc import POSE2SIM_AMBIGUOUS, load_trc
-    from .layouts import human_map_for_names
     from .problem import Weights
     from .reconstruct import reconstruct_markers
     from .solver import SolverOptions
@@ -177,27 +182,14 @@ def cmd_fit_markers(args) -> int:
                       "BODY_25); rename them in the file to use them", stacklevel=2)
         keep = [i for i, n in enumerate(markers.names) if n not in POSE2SIM_AMBIGUOUS]
         markers = Markers(markers.points[:, keep], [markers.names[i] for i in keep], markers.fps, markers.source)
-    if args.figure == "human" and not args.keypoints:  # the bundled map carrying most of the markers' names
-        fig = Figure.human(human_map_for_names(markers.names))
-        if args.limits:
-            fig = fig.with_limits(args.limits)
-    else:
-        fig = _figure_from_args(args)
+    fig = _figure_from_args(args, [markers])  # 'human': the bundled map carrying most of the markers' names
     kf = load_keyframes(args.keyframes) if args.keyframes else None
     progress = _Progress(args.quiet, args.max_iterations)
     res = reconstruct_markers(fig, markers, kf, fps_out=args.fps_out, weights=Weights(sigma_markers_m=args.sigma_m),
                               options=SolverOptions(max_iterations=args.max_iterations), callback=progress,
                               calibrate=args.calibrate)
     progress.close()
-    res.save(args.out)
-    written = [args.out]
-    if args.save_figure:
-        written += res.save_figure(args.save_figure)
-    if not args.quiet:
-        print(res.summary(), file=sys.stderr)
-        for path in written:
-            print(f"wrote {path}", file=sys.stderr)
-    return 0
+    return _save_and_report(res, args)
 
 
 def _auto_camera_from_args(args):

@@ -577,11 +577,7 @@ def make_problem(
     weights = weights or Weights()
     mode = check_calibrate(calibrate)
     pairs = camera_views(tracks, camera)
-    props = None
-    if "lengths" in mode:
-        props = Proportions.default(figure) if proportions is None else proportions
-        if props.figure is not figure:
-            raise InputError("the proportions were built for another figure", field="proportions")
+    props = _proportions_for(figure, mode, proportions)
     n_p = props.n if props is not None else 0
     theta0 = np.zeros(n_p) if log_factors0 is None or props is None else props.check(log_factors0)
     if keyframes is not None and not isinstance(keyframes, Keyframes):
@@ -640,6 +636,18 @@ def make_problem(
     )
 
 
+def _proportions_for(figure, mode: str, proportions: Proportions | None) -> Proportions | None:
+    """The proportions a problem of calibration ``mode`` solves for: ``proportions`` (built
+    for ``figure``) or :meth:`Proportions.default <pinrecon.proportions.Proportions.default>`
+    when the mode calibrates lengths, else None."""
+    if "lengths" not in mode:
+        return None
+    props = Proportions.default(figure) if proportions is None else proportions
+    if props.figure is not figure:
+        raise InputError("the proportions were built for another figure", field="proportions")
+    return props
+
+
 def make_marker_problem(
     figure,
     markers: Markers,
@@ -661,11 +669,7 @@ def make_marker_problem(
     if "camera" in mode:
         raise InputError(f"3D markers have no camera to calibrate: give 'lengths' or 'none', got {calibrate!r}",
                          field="calibrate")
-    props = None
-    if mode == "lengths":
-        props = Proportions.default(figure) if proportions is None else proportions
-        if props.figure is not figure:
-            raise InputError("the proportions were built for another figure", field="proportions")
+    props = _proportions_for(figure, mode, proportions)
     factor = upsample_factor(markers.fps, fps_out)
     T = (markers.T - 1) * factor + 1
     fps = markers.fps * factor
