@@ -178,15 +178,16 @@ def _camera_and_mode(figure, tracks, camera, keyframes, calibrate, image_size=No
     return camera, mode, None
 
 
-def _pose_unknown(auto: dict | None, mode: str, camera, keyframes) -> bool:
+def _pose_unknown(auto: dict | None, mode: str, camera) -> bool:
     """Whether the auto camera's pose is a global unknown of the one batch solve: a
-    perspective auto camera that the 3D point keyframes placed (:func:`~pinrecon.starts.
-    camera_auto.camera_from_keyframes`: they fix the world, so where the camera stands in it
-    is observable, and the tracks of every frame say more about it than the keyframes' few
-    points), its focal length calibrated. Long clips solved in windows keep it where the
-    keyframes put it (a window without a keyframe cannot see it)."""
-    return (auto is not None and auto.get("projection") == "perspective" and "camera" in str(mode)
-            and has_point_keyframes(keyframes) and "keyframe_focal" in auto
+    perspective auto camera that the 3D point keyframes placed (``auto["keyframe_focal"]``,
+    which :func:`_camera_and_mode` writes for a perspective auto camera with six or more
+    keyframe points; :func:`~pinrecon.starts.camera_auto.camera_from_keyframes` moved it
+    from the origin: they fix the world, so where the camera stands in it is observable,
+    and the tracks of every frame say more about it than the keyframes' few points), its
+    focal length calibrated. Long clips solved in windows keep it where the keyframes put
+    it (a window without a keyframe cannot see it)."""
+    return (auto is not None and "keyframe_focal" in auto and "camera" in str(mode)
             and not np.allclose(np.asarray(camera.t, float), 0.0))
 
 
@@ -208,7 +209,7 @@ def build_problem(
     ``solve(setup.problem, setup.q0, active=setup.active, g0=setup.g0)``)."""
     camera, mode, auto = _camera_and_mode(figure, tracks, camera, keyframes, calibrate, image_size)
     problem = make_problem(figure, tracks, camera, keyframes, fps_out=fps_out, weights=weights, keypoints=keypoints,
-                           calibrate=mode, camera_pose=_pose_unknown(auto, mode, camera, keyframes))
+                           calibrate=mode, camera_pose=_pose_unknown(auto, mode, camera))
     q0 = initial_trajectory(problem, _start_name(init, seed))
     return Setup(problem, q0, problem.active, problem.measurement, problem.fps, problem.camera, problem.g0)
 
@@ -351,7 +352,7 @@ def reconstruct(
                                                   mirrors=_mirrors(problem, init)), auto)
         result.extras.update(switch_extras(*switch))
         return result
-    if _pose_unknown(auto, mode, camera, keyframes):  # the keyframes placed the auto camera: its place refined too
+    if _pose_unknown(auto, mode, camera):  # the keyframes placed the auto camera: its place refined too
         inputs["camera_pose"] = True
         problem = make_problem(**inputs, calibrate=mode)
         auto = {**auto, "pose": "from the point keyframes, then refined by the solve with the tracks"}

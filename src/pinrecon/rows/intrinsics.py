@@ -106,12 +106,11 @@ class CameraScale:
         if self.pose_col is not None:
             w, _ = self._pose(g)
             E = pin.exp3(w)
-            d_xcam = d_uv @ (E @ self.base.R).T  # d uv / d x_cam = d uv / d X R^T, R = E R0
+            A = d_uv @ self.base.R.T  # d uv / d x_cam times E: d uv / d X R^T E with R = E R0
             y = np.asarray(points, float) @ self.base.R.T + self.base.t  # (..., 3)
             # d x_cam / d w = -E [y]_x Jr, and a row a times [y]_x is (a x y)
-            A = d_xcam @ E  # (..., 2, 3)
             out[..., 1:4] = -np.cross(A, y[..., None, :]) @ pin.Jexp3(w)
-            out[..., 4:7] = d_xcam
+            out[..., 4:7] = A @ E.T  # d uv / d x_cam
         return out
 
     @property
