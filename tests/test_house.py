@@ -146,7 +146,7 @@ LAYERS = [
                 "pinrecon.io.people", "pinrecon.io.detections", "pinrecon.io.asf", "pinrecon.joint_limits",
                 "pinrecon.io.tracks_json", "pinrecon.io.calibration", "pinrecon.io.results", "pinrecon.io.trc"]),
     ("rows and solver", ["pinrecon.rows", "pinrecon.weights", "pinrecon.banded", "pinrecon.solver"]),
-    ("problem", ["pinrecon.problem", "pinrecon.contact"]),
+    ("problem", ["pinrecon.problem", "pinrecon.contact", "pinrecon.identifiability"]),
     ("starts", ["pinrecon.starts", "pinrecon.planarity"]),
     ("result", ["pinrecon.result"]),
     ("pipeline", ["pinrecon.reconstruct", "pinrecon.synthetic", "pinrecon.faults", "pinrecon.metrics",

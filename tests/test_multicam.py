@@ -109,6 +109,15 @@ def test_generic_human_calibrated_by_default_with_several_cameras(walk60):
     off = pr.reconstruct(human, tracks, cams, calibrate="none")
     err_off = 1000 * np.linalg.norm(off.keypoints3d[:, human.keypoint_index(names)] - P, axis=-1).mean()
     assert err < 10.0 < err_off  # measured 2.9 / 33.5 mm on the whole walk (bench_multicam.py)
+    # several cameras fix the limbs' lengths and the figure's size; one camera neither
+    ident = res.calibration["identifiability"]
+    assert ident["size_determined"] and not {"thigh", "shank", "upper_arm", "forearm"} & set(ident["undetermined"])
+    single = pr.reconstruct(human, tracks[0], cams[0])
+    one = single.calibration["identifiability"]
+    assert not one["size_determined"] and one["size_ratio"] > 0.9
+    assert {"thigh", "shank", "upper_arm", "forearm"} <= set(one["undetermined"])
+    assert "NOT fixed by the tracks alone: any of these lengths" in "\n".join(single.calibration_summary())
+    assert "overall size" not in "\n".join(res.calibration_summary())  # three views: the trunk and head, if any
 
 
 def test_points_missing_in_one_camera(walk60):

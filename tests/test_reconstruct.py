@@ -213,9 +213,12 @@ def test_markers_fit_the_generic_humans_lengths_to_a_subject_of_other_proportion
     markers (16 mm from the truth on average). ``reconstruct_markers`` with the generic
     human fits the limbs' and the pelvis's factors (by default, for the generic human) and
     lands 9.8 mm from the subject's points; held at the generic proportions
-    (``calibrate="none"``), 25.5 mm. The trunk's and the shoulders' factors are not asserted:
-    the spine's and clavicles' joints reach the same shoulder points with other lengths
-    (fitted 0.98 and 1.00 against 1.08 and 0.92, the shoulders 2 mm apart from the truth's)."""
+    (``calibrate="none"``), 25.5 mm. The trunk's and the shoulders' factors are not fixed by
+    12 points: the spine's and clavicles' joints reach the same shoulder points with other
+    lengths (fitted 0.98 and 1.00 against 1.08 and 0.92, the shoulders 2 mm apart from the
+    truth's). The result says so: exactly those two, and the neck and head no point
+    places, are flagged as not fixed by the data (ratios 0.61-0.92 against 0.03-0.11 for
+    the groups recovered to 0.01), the overall size is fixed."""
     from pinrecon.layouts import COCO_17
     from pinrecon.proportions import Proportions
 
@@ -239,6 +242,10 @@ def test_markers_fit_the_generic_humans_lengths_to_a_subject_of_other_proportion
         assert got[n] == pytest.approx(true[n], abs=0.01), (n, got[n], true[n])
     err = {k: 1000.0 * np.linalg.norm(points(r) - P, axis=-1).mean() for k, r in (("fitted", fitted), ("held", held))}
     assert err["fitted"] < 11.0 and err["held"] > 20.0, err
+    ident = fitted.calibration["identifiability"]
+    assert set(ident["undetermined"]) == {"trunk", "shoulder_width", "neck", "head"} and ident["size_determined"]
+    assert all(abs(got[n] - true[n]) > 0.05 for n in ("trunk", "shoulder_width"))  # flagged: and off the truth
+    assert max(ident["ratios"][n] for n in ("thigh", "shank", "upper_arm", "forearm", "pelvis_width")) < 0.2
     E = points(fitted)
     width = np.linalg.norm(E[:, 0] - E[:, 1], axis=-1).mean() - np.linalg.norm(P[:, 0] - P[:, 1], axis=-1).mean()
     assert abs(width) < 0.005

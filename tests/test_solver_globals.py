@@ -317,3 +317,28 @@ def test_calibration_recovers_true_proportions_and_focal_length(focal_start):
     forearm = np.linalg.norm(np.diff(cal.keypoints(Q)[:, i], axis=1), axis=-1)
     forearm_true = np.linalg.norm(np.diff(P[:, i], axis=1), axis=-1)
     np.testing.assert_allclose(forearm, forearm_true, rtol=0.005)
+
+
+@pytest.mark.parametrize("data_only", [False, True])
+def test_globals_information_is_the_schur_complement_of_the_dense_normal_equations(small_problem, data_only):
+    """``globals_information``: ``C - B^T A^-1 B`` of ``J^T J``, over every row or over the
+    kept ones (the 2D measurements and 3D points), against the dense Jacobian, with the
+    same jitter on the motion block (1e-9 of its largest diagonal entry; a unit diagonal
+    where no kept row touches a tangent entry): 2D rows alone leave a frame's motion
+    rank-deficient, and the jitter is what makes that block invertible at all."""
+    from pinrecon.solver import globals_information
+
+    prob, Qx, g = small_problem
+    T_, nv, n_g = prob.n_frames, prob.nv, len(g)
+    keep = (lambda b: b.name in ("measurement", "points3d")) if data_only else None
+    blocks = [b for b in _flat(prob.evaluate(Qx, True, g)) if keep is None or keep(b)]
+    J, _ = dense_jacobian(blocks, T_, nv, n_g)
+    H = J.T @ J
+    n = T_ * nv
+    A, B, C = H[:n, :n], H[:n, n:], H[n:, n:]
+    jitter = 1e-9 * np.diag(A).max()
+    A = A + np.diag(jitter + np.where(np.diag(A) > jitter, 0.0, 1.0))
+    want = C - B.T @ np.linalg.solve(A, B)
+    got = globals_information(prob, Qx, g, rows=keep)
+    assert np.abs(got - want).max() <= 1e-6 * np.abs(want).max()
+    assert np.abs(got - got.T).max() == 0.0

@@ -154,7 +154,10 @@ def test_fit_markers_command_writes_a_result_and_says_what_it_left_out(tmp_path,
     err = capsys.readouterr().err
     assert "markers Neck, Head not used" in err and "reprojection error" not in err
     assert "poses unlike the pose prior" not in err  # 3D markers measure the depths the prior would guess
+    # 13 COCO points fix neither the trunk against the spine's bend nor the neck against the head
+    assert "NOT fixed by the data alone: trunk, shoulder_width, neck, head" in err
     res = pr.load_result(out)
+    assert res.calibration["identifiability"]["undetermined"][:4] == ["trunk", "shoulder_width", "neck", "head"]
     m = load_trc(TRIAL, names="pinrecon")
     names = ["left_shoulder", "right_knee", "left_big_toe", "right_heel"]
     d = res.keypoints3d[:, res.figure.keypoint_index(names)] - m.points[:, [m.names.index(n) for n in names]]

@@ -25,6 +25,7 @@ import numpy as np
 from .contact import foot_keypoints, solve_on_the_floor
 from .errors import InputError
 from .faults import fault_stage, report_outliers
+from .identifiability import proportions_identifiability
 from .problem import (
     ReconstructionProblem,
     Weights,
@@ -343,13 +344,13 @@ def reconstruct(
         if floor is not None or contact is not None:
             raise InputError("the feet stage (floor, contact) needs one batch solve: pass window=0", field="window")
         result = _package(problem, solve_windowed(problem, start, options, callback, window=span,
-                                                  mirrors=_mirrors(problem, init)), auto)
+                                                  mirrors=_mirrors(problem, init)), auto, identify=False)
         switch = None if default is None else broader_prior(default, "auto", result.extras)
         if switch is None:
             return result
         problem = make_problem(**{**inputs, "weights": replace(weights, pose_prior_model=switch[0])}, calibrate=mode)
         result = _package(problem, solve_windowed(problem, start, options, callback, window=span,
-                                                  mirrors=_mirrors(problem, init)), auto)
+                                                  mirrors=_mirrors(problem, init)), auto, identify=False)
         result.extras.update(switch_extras(*switch))
         return result
     if _pose_unknown(auto, mode, camera):  # the keyframes placed the auto camera: its place refined too
@@ -522,10 +523,14 @@ def _lengths_from_tracks(problem: ReconstructionProblem, q0: np.ndarray, start: 
     return new, q0
 
 
-def _package(problem: ReconstructionProblem, res: SolveResult, auto: dict | None = None) -> Result:
+def _package(problem: ReconstructionProblem, res: SolveResult, auto: dict | None = None, *,
+             identify: bool = True) -> Result:
     """The solved trajectory as a :class:`Result`: keypoints and per-frame reprojection
     error, over all cameras and per camera. With global unknowns: the calibrated figure,
-    its keypoints, the fitted cameras and ``calibration``."""
+    its keypoints, the fitted cameras and ``calibration`` (with fitted lengths, and
+    ``identify``, which of them the data fix: :func:`~pinrecon.identifiability.
+    proportions_identifiability`; a windowed solve skips it, it would assemble the whole
+    clip's normal equations at once)."""
     g = globals_of(res)
     g = problem.g0 if g is None else g
     Q = problem.figure.normalize(res.x)
@@ -557,11 +562,13 @@ def _package(problem: ReconstructionProblem, res: SolveResult, auto: dict | None
     unfamiliar = unfamiliar_poses(problem, Q) if getattr(problem, "markers", None) is None else None
     if unfamiliar is not None:  # ... and with it an auto camera's focal length, which one view owes to the prior
         auto = doubt_focal(auto, unfamiliar.share, limit=SWITCH_SHARE)
+    ident = proportions_identifiability(problem, Q, g) if identify else None
+    identified = {"identifiability": ident} if ident else {}
     result = Result(
         figure, Q, np.arange(T) / problem.fps, problem.fps, P, err, res, observed,
         cameras=problem.cameras_at(g), camera_names=problem.camera_names,
         reprojection_error_px_per_camera=per_camera if views else None,
-        calibration={**problem.calibration(g), **({"camera_auto": auto} if auto else {}),
+        calibration={**problem.calibration(g), **({"camera_auto": auto} if auto else {}), **identified,
                      **({"lengths_from_tracks": problem.measured_lengths} if getattr(problem, "measured_lengths", None)
                         else {})},
     )

@@ -226,6 +226,7 @@ class Result:
         if measured:  # no 3D keyframe: the fit started at what the tracks measure (reconstruct's lengths_from_tracks)
             lines.append("  measured from the tracks (the fit's start; other groups held at the figure's): "
                          + "; ".join(f"{g} {m:.3f} m" for g, m in measured.items()))
+        lines += _identifiability_lines(c.get("identifiability"), list(fitted))
         for name, cam in (c.get("cameras") or {}).items():
             what, unit = ("focal length", "px") if cam.get("quantity") == "focal_px" else ("scale", "px/m")
             lines.append(f"  camera {name!r}: {what} {cam['start']:.1f} -> {cam['fitted']:.1f} {unit}")
@@ -341,6 +342,28 @@ def _calibration(d, path) -> dict:
     if not isinstance(out, dict):
         raise InputError("must be a JSON object", file=path, field="calibration")
     return out
+
+
+def _identifiability_lines(ident, groups: list[str]) -> list[str]:
+    """The calibration summary's word on the lengths the data do not fix
+    (:func:`pinrecon.identifiability.proportions_identifiability`)."""
+    if not ident:
+        return []
+    und = [g for g in ident.get("undetermined", []) if g in groups]
+    every = bool(und) and len(und) == len(groups)
+    lines = []
+    if every and set(ident.get("data_rows", [])) <= {"measurement"} and ident.get("views", 1) <= 1:  # one view
+        lines.append("  NOT fixed by the tracks alone: any of these lengths. One view bounds each from below (a limb "
+                     "is at least as long as its longest image), but a longer one leaning out of the image costs "
+                     "nothing in the tracks: the pose prior and the joint limits chose the values. A 3D keyframe, "
+                     "a second camera or 3D markers fix them")
+    elif und:
+        lines.append(f"  NOT fixed by the data alone: {'any of these lengths' if every else ', '.join(und)} (a small "
+                     "change is taken up by the poses at no cost in the data, so the priors chose the value)")
+    if not ident.get("size_determined", True) and not every:
+        lines.append("  NOT fixed by the data alone: the overall size (all lengths larger or smaller together, at no "
+                     "cost in the data); a 3D keyframe, a second camera or one known length fixes it")
+    return lines
 
 
 def load_result(path) -> Result:

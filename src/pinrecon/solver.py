@@ -47,9 +47,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.linalg import LinAlgError
 
-from .banded import ActiveNormalEquations, ArrowheadFactor, BandedNormalEquations
+from .banded import ActiveNormalEquations, ArrowheadFactor, BandedNormalEquations, forward_solve
 
-__all__ = ["SolverOptions", "IterationReport", "SolveResult", "globals_of", "solve", "BandedNormalEquations", "ArrowheadFactor"]
+__all__ = ["SolverOptions", "IterationReport", "SolveResult", "globals_of", "globals_information", "solve", "BandedNormalEquations", "ArrowheadFactor"]
 
 
 @dataclass
@@ -144,6 +144,41 @@ def globals_of(res) -> np.ndarray | None:
     """A solve result's global unknowns (``res.g``), None when it has none."""
     g = getattr(res, "g", None)
     return None if g is None or not len(g) else g
+
+
+def globals_information(problem, x, g, active=None, *, rows: Callable | None = None,
+                        jitter: float = 1e-9) -> np.ndarray:
+    """What the rows say about the global unknowns ``g`` at ``(x, g)`` with the motion
+    marginalised out: ``S = C - B^T A^-1 B``, the Schur complement of the undamped
+    Gauss-Newton normal equations ``J^T J`` (the arrowhead of the module docstring).
+
+    The cost is ``0.5 |r|^2`` in whitened rows, so ``S`` is the curvature of the cost
+    profiled over the motion, and ``inv(S)`` over all rows is the Laplace approximation of
+    the globals' posterior covariance. ``rows`` (a predicate on a row block) keeps only
+    some rows, e.g. the measurements, to ask what the data alone determine; motion
+    directions no kept row touches are then free (``jitter``, relative to the largest
+    diagonal entry, keeps ``A`` factorable), so a global that they can trade against is
+    left undetermined. With robust losses the reweighted rows at ``(x, g)`` are read.
+    ``(0, 0)`` without globals.
+    """
+    if g is None or not np.size(g):
+        return np.zeros((0, 0))
+    gv = np.asarray(g, float).reshape(-1)
+    n_g = gv.size
+    blocks = _flatten(problem.evaluate(x, True, gv))
+    if rows is not None:
+        blocks = [b for b in blocks if rows(b)]
+    if not blocks:
+        return np.zeros((n_g, n_g))
+    normal = ActiveNormalEquations(problem.n_frames, problem.nv, blocks, active)
+    _, (B, C, _) = normal.assemble(blocks, n_g)
+    diag = normal.diagonal()
+    floor = jitter * max(float(diag.max()) if diag.size else 0.0, 1e-300)
+    normal.ab[0] += floor + np.where(diag > floor, 0.0, 1.0)
+    c = ArrowheadFactor(normal.ab).c
+    Z = forward_solve(c, np.asfortranarray(B)) if B.shape[0] else np.zeros(B.shape)
+    S = C - Z.T @ Z
+    return 0.5 * (S + S.T)
 
 
 def _costs(blocks) -> dict[str, float]:
