@@ -21,7 +21,12 @@ so groups the data miss (a neck and head placed by the nose only) do not hide a 
 that the rest fixes; each group is judged given the overall size (both covariances
 conditioned on ``u^T theta``), so a clip that fixes the proportions but not the size
 says exactly that. It is a local (Laplace) statement at the solution: a small change of a flagged
-factor is taken up by the poses at no cost in the data.
+factor is taken up by the poses at no cost in the data. It cannot see one-sided bounds,
+and one view's 2D tracks alone give nothing else: a segment can always be longer and
+lean out of the image, its child kept on its ray, so every length is only bounded from
+below. Where a segment lies in the image plane the local curvature would call its length
+fixed (the Balancing trial's standing leg: ratios 0.11-0.14); with one view and no 3D
+data every group is therefore reported not fixed, whatever the ratios.
 
 The synthetic subject of ``tests/test_reconstruct.py`` (known factors, 12 COCO points as
 1 cm markers): the limbs' and the pelvis's ratios are 0.02-0.10 and their factors come
@@ -87,7 +92,8 @@ def proportions_identifiability(problem, Q, g, *, threshold: float = UNDETERMINE
     ``size_ratio``: the same for the overall size: all factors scaled together, the
         other directions held (1: a uniformly larger or smaller figure costs nothing in
         the data, as under one camera without a 3D keyframe);
-    ``undetermined``: the groups over ``threshold``; ``size_determined``;
+    ``undetermined``: the groups over ``threshold`` (every group with one view and no 3D
+        data, see above); ``size_determined``;
     ``threshold``; ``data_rows``: the row kinds read as data; ``views``: the cameras.
     """
     props = getattr(problem, "proportions", None)
@@ -111,11 +117,17 @@ def proportions_identifiability(problem, Q, g, *, threshold: float = UNDETERMINE
         ratios = np.array([size_ratio])
     names = list(props.names)
     data = sorted({b.name for b in problem.rows if is_data_row(b)})
+    views = len(getattr(problem, "views", None) or [])
+    # one view's 2D rows alone bound every length from below only (a longer segment leans
+    # out of the image, its child kept on its ray): where a segment lies in the image
+    # plane the local curvature sees a length it cannot fix, so it is not asked
+    one_view = views <= 1 and set(data) <= {"measurement"}
+    undetermined = names if one_view else [n for n, r in zip(names, ratios) if r > threshold]
     return {
         "ratios": {n: round(float(r), 4) for n, r in zip(names, ratios)},
         "size_ratio": round(size_ratio, 4),
-        "undetermined": [n for n, r in zip(names, ratios) if r > threshold],
-        "size_determined": bool(size_ratio <= threshold),
+        "undetermined": list(undetermined),
+        "size_determined": bool(size_ratio <= threshold) and not one_view,
         "threshold": float(threshold),
         "data_rows": data,
         "views": len(getattr(problem, "views", None) or []),
