@@ -86,7 +86,9 @@ def who_is_followed(tracks, folder):
         except (json.JSONDecodeError, ValueError):
             people = []
         for p in people:
-            if len(p) == tracks.K and np.array_equal(as_points(p), tracks.points[t], equal_nan=True):
+            want = as_points(p)
+            want[(p[:, 2] > 0) & np.any(p[:, :2] == 0, axis=1)] = np.nan  # a detector's 0 is no position
+            if len(p) == tracks.K and np.array_equal(want, tracks.points[t], equal_nan=True):
                 found = identity(p)
         out.append(found)
     return out
@@ -177,6 +179,31 @@ def test_mistake_one_bad_frame_is_a_missing_frame(tmp_path):
     text = [str(w.message) for w in rec]
     assert any("1 of 40 frames could not be read" in m and "frames 9;" in m for m in text)
     assert any("2 detection(s) could not be read" in m and "frames 1, 5;" in m for m in text)
+
+
+def test_mistake_a_coordinate_exactly_zero_is_missing_not_a_point_at_the_edge():
+    """Pose2Sim's balancing trial (camera 1, OpenPose BODY_25B): in six frames the nose is
+    written as x = 0 beside a real y and a confidence of 0.65-0.69, its neighbours 530 px
+    away. Read as missing, in one warning naming the point and the frames (before, they
+    were points at the image's left edge that the robust loss had to report as outliers).
+    The frames are found here from the raw JSON; COCO's whole-pixel annotations keep their
+    zeros (``test_coco_results_by_image_and_score``)."""
+    from conftest import REPO
+
+    folder = REPO / "examples" / "data" / "pose2sim_balancing" / "cam01_json"
+    files = sorted(folder.glob("*.json"))
+    raw = [raw_people(f) for f in files]
+    zero = sorted(t for t, people in enumerate(raw) for k in people[0]  # the first person: the subject
+                  if k[2] > 0 and (k[0] == 0) != (k[1] == 0))
+    assert zero == [4, 5, 6, 7, 8, 15]
+    with pytest.warns(TracksWarning) as rec:
+        tracks = load_tracks(folder, fps=60.0)
+    text = [str(w.message) for w in rec]
+    assert any("6 detected point(s) had a coordinate exactly 0" in m and "nose in frames 4, 5, 6, 7, 8, 15" in m
+               for m in text), text
+    nose = tracks.names.index("nose")
+    assert np.isnan(tracks.points[zero, nose]).all() and (tracks.confidence[zero, nose] == 0).all()
+    assert np.isfinite(tracks.points[[3, 9, 14, 16], nose]).all()  # their neighbours are read as written
 
 
 def test_real_empty_entry_is_dropped_and_the_load_goes_on():

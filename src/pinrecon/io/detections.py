@@ -13,7 +13,10 @@ could not be read. :func:`to_track_arrays` then does the same for all of them:
    (:func:`pinrecon.layouts.detect.detect_layout`);
 3. one subject is followed through the frames (:func:`~pinrecon.io.people.select_subject`);
 4. frames that could not be read are missing frames, reported in one warning; the
-   load fails (with the first problem found) only when no point is left.
+   load fails (with the first problem found) only when no point is left;
+5. in files of sub-pixel coordinates, a detected point with a coordinate exactly 0 is
+   missing, said in one warning (OpenPose writes 0 for a point it did not find; one such
+   coordinate beside a real one, with its confidence kept, is in Pose2Sim's own demo files).
 """
 
 from __future__ import annotations
@@ -141,6 +144,7 @@ def to_track_arrays(det: Detections, *, person=None, layout=None, box_only: bool
         n = _count(det)
         lay, candidates = _layout(det, n, layout)
     T = len(det.frames)
+    zeros = [] if box_only else _zero_coordinates(det)
     try:
         pts, conf, report = select_subject(det.frames, n, person)
     except InputError as exc:
@@ -173,12 +177,43 @@ def to_track_arrays(det: Detections, *, person=None, layout=None, box_only: bool
             f"{det.source}: {len(det.dropped)} detection(s) could not be read and were dropped "
             f"(frames {_short(frames)}; first problem: {det.dropped[0].message})"
         )
+    if zeros:
+        names = sorted({lay.names[k] if k < len(lay.names) else f"point {k}" for _, k in zeros})
+        notes.append(
+            f"{det.source}: {len(zeros)} detected point(s) had a coordinate exactly 0 with a confidence above 0 "
+            f"({', '.join(names[:4])}{' ...' if len(names) > 4 else ''} in frames "
+            f"{_short(sorted({t for t, _ in zeros}))}): read as missing. A detector writes 0 for a point it did not "
+            "find, and a point clipped to the image's edge is not where it was"
+        )
     text = report.text(T)
     if text:
         notes.append(f"{det.source}: {text}")
     if note:
         notes.append(f"{det.source}: {note}")
     return TrackArrays(pts, list(lay.names), None, conf, det.source, lay.name, tuple(notes))
+
+
+def _zero_coordinates(det: Detections) -> list[tuple[int, int]]:
+    """Detected points (confidence above 0) with a coordinate exactly 0, made missing in
+    place before the subject is followed (a point at the image's edge would stretch its
+    box); returns their (frame, point index). Only in files of sub-pixel coordinates (a
+    detector's): where every coordinate is a whole pixel (annotations, such as COCO's),
+    0 is the image's first row or column. Pose2Sim's balancing trial has six: the
+    nose at x = 0 with confidence 0.65-0.69 in frames 4-8 and 15, its neighbours 530 px
+    away."""
+    with np.errstate(invalid="ignore"):
+        fractional = any(np.any(np.mod(d.points, 1.0) > 0) for dets in det.frames for d in dets)
+    if not fractional:  # whole pixels (annotations): 0 is the image's first row or column
+        return []
+    found = []
+    for t, dets in enumerate(det.frames):
+        for d in dets:
+            bad = (d.conf > 0) & np.any(d.points == 0.0, axis=1)
+            if bad.any():
+                d.points[bad] = np.nan
+                d.conf[bad] = 0.0
+                found += [(t, int(k)) for k in np.flatnonzero(bad)]
+    return found
 
 
 def _short(frames: list[int]) -> str:
