@@ -20,6 +20,7 @@ from pinrecon.starts.camera_auto import (
     AutoCamera,
     auto_camera,
     camera_from_keyframes,
+    camera_pose_from_keyframes,
     camera_scale_from_keyframes,
     orthographic_from_keyframes,
 )
@@ -67,6 +68,65 @@ def test_perspective_camera_from_keyframes_is_exact_on_exact_data():
     flat = X.copy()
     flat[:, 2] = 0.0
     assert camera_from_keyframes(flat, truth.project(flat), SIZE, 800.0) is None  # coplanar: no DLT
+
+
+def test_camera_pose_from_keyframes_is_exact_on_exact_data_from_four_points():
+    """Perspective-n-point with the focal length known: 4 and 40 exact points give the true
+    pose; points in one plane, or too few, give None."""
+    truth = pr.Perspective.look_at([3.0, 1.4, -5.0], [0.2, 0.9, 0.3], f_px=1100.0, center=(640.0, 360.0))
+    X = _cloud()
+    for n in (4, 40):
+        cam = camera_pose_from_keyframes(X[:n], truth.project(X[:n]), SIZE, 1100.0)
+        np.testing.assert_allclose(cam.R, truth.R, atol=1e-6)
+        np.testing.assert_allclose(cam.t, truth.t, atol=1e-6)
+        np.testing.assert_allclose(cam.K, truth.K, atol=1e-9)
+    assert camera_pose_from_keyframes(X[:3], truth.project(X[:3]), SIZE, 1100.0) is None
+    flat = X.copy()
+    flat[:, 2] = 0.0
+    assert camera_pose_from_keyframes(flat, truth.project(flat), SIZE, 1100.0) is None
+
+
+def test_one_keyframe_places_the_auto_camera_at_its_default_focal_length():
+    """One 3D keyframe (the walk's 12 body points at frame 0, 5 cm noise) cannot fix the
+    focal length: the resection with it free ran along that valley and put the camera 13 m
+    (60 degrees) and 84 m (45 degrees) from the true one. ``auto_camera`` now places it at
+    the default focal length instead (1663 px for 60 degrees across 1920 px; true 1200), as
+    far off as that focal length makes it: the distance 1663 / 1200 of the true one, in
+    about the true direction (measured 1.43 and 1.35 times the distance, 7.9 and 12.4
+    degrees off, 2.5 and 2.3 m). Without noise the same keyframe fixes the focal length
+    and the camera is the true one."""
+    from pinrecon.synthetic import bundled_motion, coco_body_tracks, perspective_side_camera
+
+    fig, q, fps = bundled_motion("walk")
+    q = q[:240]
+    for azimuth in (45.0, 60.0):
+        cam = perspective_side_camera(q, azimuth)
+        tracks, P = coco_body_tracks(fig, q, cam, fps=fps)
+        rng = np.random.default_rng(int(azimuth))
+        keys = keyframes_from_points([0], P + rng.normal(0.0, 0.05, P.shape), tracks.names, 0.05)
+        got = auto_camera(tracks, None, (1920, 1080), keyframes=keys)
+        C, C0 = -got.R.T @ got.t, -cam.R.T @ cam.t
+        mid = P[0].mean(0)
+        assert got.K[0, 0] == pytest.approx(960.0 / np.tan(np.radians(30.0)))
+        along = (C - mid) @ (C0 - mid) / np.linalg.norm(C0 - mid) ** 2  # the true direction, scaled
+        assert along == pytest.approx(got.K[0, 0] / cam.K[0, 0], rel=0.15)
+        assert np.degrees(np.arccos(np.clip((C - mid) @ (C0 - mid) / np.linalg.norm(C - mid)
+                                            / np.linalg.norm(C0 - mid), -1, 1))) < 15.0
+        exact = auto_camera(tracks, None, (1920, 1080), keyframes=keyframes_from_points([0], P, tracks.names, 0.05))
+        np.testing.assert_allclose(-exact.R.T @ exact.t, C0, atol=1e-3)
+        assert exact.K[0, 0] == pytest.approx(cam.K[0, 0], rel=1e-4)
+
+
+def test_too_few_keyframe_points_for_the_auto_camera_are_one_clear_error():
+    """Point keyframes that cannot place the auto camera (3 points) are refused: the gauge
+    camera's world is not theirs (solving with both put the walk 2.2 m off)."""
+    names = ["left_hip", "right_hip", "left_knee", "right_knee"]
+    tracks = pr.Tracks(np.random.default_rng(0).uniform(400, 600, (10, 4, 2)), names, 30.0)
+    key = pr.Keyframe(0, 0.05, points={"left_hip": [0.0, 0.0, 3.0], "right_hip": [0.2, 0.0, 3.0],
+                                       "left_knee": [0.0, -0.4, 3.0]})
+    with pytest.raises(pr.InputError) as e:
+        pr.reconstruct(pr.Figure.human(), tracks, "auto", pr.Keyframes([key]), image_size=(1280, 720))
+    assert e.value.field == "keyframes" and "3 point(s)" in str(e.value)
 
 
 def test_orthographic_camera_from_keyframes_is_exact_on_exact_data():

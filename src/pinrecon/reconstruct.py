@@ -47,6 +47,7 @@ from .starts.camera_auto import (
     image_size_of,
     keyframe_correspondences,
     keyframe_focal_interval,
+    placed_by_keyframes,
     settle_focal,
 )
 from .starts.mirrors import mirror_stage
@@ -156,9 +157,16 @@ def _camera_and_mode(figure, tracks, camera, keyframes, calibrate, image_size=No
         if calibrate is None:
             mode = "lengths+camera" if mode == "lengths" else "camera"
         posed = has_point_keyframes(keyframes)
+        placed = placed_by_keyframes(camera)
+        if posed and not placed:  # the keyframes' world is not the gauge camera's: they would contradict it
+            n = len(keyframe_correspondences(tracks, keyframes)[0])
+            raise InputError(
+                f"the point keyframes meet the tracks in {n} point(s): placing the auto camera in their world needs "
+                "4 or more, not all in one plane. Give a camera file (--camera FILE), more keyframe points, or no "
+                "point keyframes", field="keyframes")
         desc = {"projection": auto.projection, "image_size": list(image_size_of(tracks, auto.image_size)),
                 "start": camera.to_dict(),
-                "pose": "from the point keyframes" if posed else "gauge: the world is the camera's (optical centre "
+                "pose": "from the point keyframes" if placed else "gauge: the world is the camera's (optical centre "
                 "at the origin, looking along +Z, +Y up)"}
         if auto.projection == "perspective":
             desc["fov_deg"] = float(auto.fov_deg)
@@ -181,15 +189,14 @@ def _camera_and_mode(figure, tracks, camera, keyframes, calibrate, image_size=No
 
 def _pose_unknown(auto: dict | None, mode: str, camera) -> bool:
     """Whether the auto camera's pose is a global unknown of the one batch solve: a
-    perspective auto camera that the 3D point keyframes placed (``auto["keyframe_focal"]``,
-    which :func:`_camera_and_mode` writes for a perspective auto camera with six or more
-    keyframe points; :func:`~pinrecon.starts.camera_auto.camera_from_keyframes` moved it
-    from the origin: they fix the world, so where the camera stands in it is observable,
-    and the tracks of every frame say more about it than the keyframes' few points), its
-    focal length calibrated. Long clips solved in windows keep it where the keyframes put
-    it (a window without a keyframe cannot see it)."""
-    return (auto is not None and "keyframe_focal" in auto and "camera" in str(mode)
-            and not np.allclose(np.asarray(camera.t, float), 0.0))
+    perspective auto camera that the 3D point keyframes placed
+    (:func:`~pinrecon.starts.camera_auto.placed_by_keyframes`: they fix the world, so
+    where the camera stands in it is observable, and the tracks of every frame say more
+    about it than the keyframes' few points), its focal length calibrated. Long clips
+    solved in windows keep it where the keyframes put it (a window without a keyframe
+    cannot see it)."""
+    return (auto is not None and auto.get("projection") == "perspective" and "camera" in str(mode)
+            and placed_by_keyframes(camera))
 
 
 def build_problem(
