@@ -129,6 +129,21 @@ def test_too_few_keyframe_points_for_the_auto_camera_are_one_clear_error():
     assert e.value.field == "keyframes" and "3 point(s)" in str(e.value)
 
 
+def test_too_few_keyframe_points_on_the_command_line_name_the_file(tmp_path, capsys):
+    """The same refusal from ``pinrecon reconstruct``: one line naming the keyframes file,
+    nothing written. The keyframes are saved from points given as plain lists."""
+    names = ["left_hip", "right_hip", "left_knee", "right_knee"]
+    pr.Tracks(np.random.default_rng(0).uniform(400, 600, (10, 4, 2)), names, 30.0).save(tmp_path / "t.json")
+    pr.Keyframes([pr.Keyframe(0, 0.05, points={"left_hip": [0.0, 0.0, 3.0], "right_hip": [0.2, 0.0, 3.0],
+                                               "left_knee": [0.0, -0.4, 3.0]})]).save(tmp_path / "k.json")
+    code = main(["reconstruct", "--figure", "human", "--tracks", str(tmp_path / "t.json"), "--camera", "auto",
+                 "--image-size", "1280", "720", "--keyframes", str(tmp_path / "k.json"), "--out",
+                 str(tmp_path / "r.npz")])
+    err = capsys.readouterr().err
+    assert code != 0 and "k.json" in err and "3 point(s)" in err and "Traceback" not in err
+    assert not (tmp_path / "r.npz").exists()
+
+
 def test_orthographic_camera_from_keyframes_is_exact_on_exact_data():
     truth = pr.Orthographic.from_view([0.4, -0.2, 1.0], scale=260.0, center=(700.0, 300.0))
     X = _cloud(seed=1)

@@ -163,7 +163,7 @@ def _camera_and_mode(figure, tracks, camera, keyframes, calibrate, image_size=No
             raise InputError(
                 f"the point keyframes meet the tracks in {n} point(s): placing the auto camera in their world needs "
                 "4 or more, not all in one plane. Give a camera file (--camera FILE), more keyframe points, or no "
-                "point keyframes", field="keyframes")
+                "point keyframes", file=getattr(keyframes, "source", None), field="keyframes")
         desc = {"projection": auto.projection, "image_size": list(image_size_of(tracks, auto.image_size)),
                 "start": camera.to_dict(),
                 "pose": "from the point keyframes" if placed else "gauge: the world is the camera's (optical centre "

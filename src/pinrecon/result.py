@@ -362,7 +362,7 @@ def _identifiability_lines(ident, groups: list[str]) -> list[str]:
                      "change is taken up by the poses at no cost in the data, so the priors chose the value)")
     if not ident.get("size_determined", True) and not every:
         lines.append("  NOT fixed by the data alone: the overall size (all lengths larger or smaller together, at no "
-                     "cost in the data); a 3D keyframe, a second camera or one known length fixes it")
+                     "cost in the data); a 3D keyframe, a second camera or 3D markers fix it")
     return lines
 
 

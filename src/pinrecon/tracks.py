@@ -357,7 +357,7 @@ class Keyframes:
         for k in self.keyframes:
             d = {"frame": k.frame, "sigma": k.sigma}
             vals = k.points if k.points is not None else k.joints
-            d[k.kind] = {n: (v.tolist() if np.ndim(v) else float(v)) for n, v in vals.items()}
+            d[k.kind] = {n: (np.asarray(v, float).tolist() if np.ndim(v) else float(v)) for n, v in vals.items()}
             items.append(d)
         return {"keyframes": items}
 
