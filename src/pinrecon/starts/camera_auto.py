@@ -458,10 +458,12 @@ def doubt_focal(auto: dict | None, unfamiliar_share: float, *, limit: float = 0.
             not unfamiliar_share > limit:
         return auto
     lo, hi = focal["interval_px"]
+    keyed = str(auto.get("pose", "")).startswith("from the point keyframes")
     msg = (f"the focal length is NOT determined: one view fixes it only through the pose prior, and "
            f"{100 * unfamiliar_share:.0f} % of the frames' poses are unlike its clips; fitted {focal['focal_px']:.0f} px, "
            f"which the MAP cost profile put at {lo:.0f}-{hi:.0f} px (95 %) taking the prior as right. Give a calibrated "
-           "camera (--camera FILE) or 3D keyframes for a metric focal length")
+           f"camera (--camera FILE) or {'more 3D keyframes, spread over the clip and in depth,' if keyed else '3D keyframes'}"
+           " for a metric focal length")
     import warnings
 
     warnings.warn(msg, FocalLengthWarning, stacklevel=3)
