@@ -79,6 +79,9 @@ def test_windowed_solve_is_within_a_millimetre_of_the_batch_solve(walk_300):
     # the globals (the human's segment lengths, calibrated by default) come from one leading stretch (here all)
     assert win.solve.g is not None and win.solve.g.shape == batch.solve.g.shape
     assert np.abs(win.solve.g - batch.solve.g).max() < 0.05
+    # and so does the word on which of them the data fix: the same groups as the batch's
+    got, want = win.calibration["identifiability"], batch.calibration["identifiability"]
+    assert got["undetermined"] == want["undetermined"] and got["size_determined"] == want["size_determined"]
 
 
 def _solver_peak_mb(n, window):

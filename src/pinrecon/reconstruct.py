@@ -536,8 +536,8 @@ def _package(problem: ReconstructionProblem, res: SolveResult, auto: dict | None
     error, over all cameras and per camera. With global unknowns: the calibrated figure,
     its keypoints, the fitted cameras and ``calibration`` (with fitted lengths, and
     ``identify``, which of them the data fix: :func:`~pinrecon.identifiability.
-    proportions_identifiability`; a windowed solve skips it, it would assemble the whole
-    clip's normal equations at once)."""
+    proportions_identifiability`; a windowed solve brings its own, from the leading
+    stretch that fitted them, instead of assembling the whole clip at once)."""
     g = globals_of(res)
     g = problem.g0 if g is None else g
     Q = problem.figure.normalize(res.x)
@@ -569,7 +569,7 @@ def _package(problem: ReconstructionProblem, res: SolveResult, auto: dict | None
     unfamiliar = unfamiliar_poses(problem, Q) if getattr(problem, "markers", None) is None else None
     if unfamiliar is not None:  # ... and with it an auto camera's focal length, which one view owes to the prior
         auto = doubt_focal(auto, unfamiliar.share, limit=SWITCH_SHARE)
-    ident = proportions_identifiability(problem, Q, g) if identify else None
+    ident = proportions_identifiability(problem, Q, g) if identify else getattr(res, "identifiability", None)
     identified = {"identifiability": ident} if ident else {}
     result = Result(
         figure, Q, np.arange(T) / problem.fps, problem.fps, P, err, res, observed,

@@ -17,6 +17,9 @@ by window, in order:
   the middle half of the overlap, away from both windows' ends where a window knows least;
 * global unknowns (a calibration) are solved once on a leading stretch of the clip
   (:data:`CALIBRATION_FRAMES`, or the first window if longer), then held in every window;
+  which of the fitted lengths that stretch's data fix
+  (:func:`pinrecon.identifiability.proportions_identifiability`) is the result's
+  ``identifiability`` attribute;
 * the turn stage (:func:`pinrecon.starts.turns.turn_stage`: the solution's fast turns
   wound), the mirror stage where asked (:func:`pinrecon.starts.mirrors.mirror_stage`: limb
   spans mirrored where the MAP cost falls) and the fault stage (:func:`pinrecon.faults.fault_stage`: left/right swaps
@@ -44,6 +47,7 @@ import numpy as np
 
 from .errors import InputError
 from .faults import FaultReport, fault_stage
+from .identifiability import proportions_identifiability
 from .problem import make_problem
 from .solver import SolveResult, SolverOptions, solve
 from .starts import initial_trajectory
@@ -146,13 +150,14 @@ def solve_windowed(problem, start="auto", options: SolverOptions | None = None, 
     unit = math.lcm(*[int(v.factor) for v in views])
     plan = window_plan(T, max(window, 2 * unit + 1), overlap, unit)
     X = np.empty((T, problem.figure.nq))
-    g_solved = None
+    g_solved = identified = None
     if problem.g0 is not None:  # the globals, from a leading stretch, then held in every window
         stretch = (min(T - 1, max(plan[0][1], CALIBRATION_FRAMES - 1)) // unit) * unit
         wp = _window_problem(problem, 0, stretch, free_globals=True, g_held=None)
         q0 = initial_trajectory(wp, start) if isinstance(start, str) else np.array(np.asarray(start, float)[: stretch + 1])
         res = solve(wp, q0, options, callback, active=wp.active, g0=wp.g0)
         g_solved = res.g if res.g is not None else wp.g0
+        identified = proportions_identifiability(wp, res.x, g_solved)  # what this stretch's data fix
         for key, rep in wp.reports.items():  # e.g. the hypotheses start's report
             problem.reports.setdefault(key, rep)
     reports, iterations, statuses, fault_reports, tried, mirrored = [], 0, [], [[] for _ in views], {}, {}
@@ -218,6 +223,7 @@ def solve_windowed(problem, start="auto", options: SolverOptions | None = None, 
                       not stopped and all(s in ("ftol", "xtol", "gtol") for s in statuses), status, reports,
                       time.perf_counter() - t0, float("nan"))
     out.g = g_final
+    out.identifiability = identified
     return out
 
 
