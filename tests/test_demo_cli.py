@@ -179,3 +179,17 @@ def test_stability_flags_reach_the_check_and_the_result(demo_dir, tmp_path, monk
     back = pr.load_result(out)
     assert back.extras["stability_spread_mm"].shape == (3, len(back.times))
     assert "stability: solved again on 3 copies" in back.summary()
+
+
+def test_demo_your_video_says_the_data_fix_none_of_its_lengths(demo_dir):
+    """One camera, no keyframe: the table's "lengths the data fix" row reads the result's
+    identifiability report, which flags all 9 fitted groups and the size (the one-view
+    rule of pinrecon.identifiability)."""
+    import pinrecon as pr
+    from pinrecon.demo import DemoSummary, _lengths_fixed
+
+    res = pr.load_result(demo_dir / "your_video" / "result.npz")
+    fixed = _lengths_fixed(res.calibration)
+    assert fixed == {"groups": 9, "fixed": 0, "size_fixed": False}
+    summary = DemoSummary(1, 120.0, 1, "ftol", 0.1, 0.1, 1.0, 1.0, [], video=fixed)
+    assert "lengths the data fix         0 of 9, size not fixed" in summary.table()

@@ -73,6 +73,8 @@ class DemoSummary:
             ("outliers reported", f"{v.get('outliers', 0)} ({v.get('injected', 0)} injected)", "-"),
             ("uncertain limb spans", f"{v.get('uncertain', 0)} of {v.get('spans', 0)}", "-"),
             ("poses unlike the pose prior", f"{v.get('unfamiliar', 0)} of {v.get('frames', 0)} frames", "-"),
+            ("lengths the data fix", f"{v.get('fixed', 0)} of {v.get('groups', 0)}, size "
+             + ("fixed" if v.get("size_fixed") else "not fixed"), "- (the clip's own)"),
             ("mean reprojection error", f"{v.get('reprojection_px', float('nan')):.2f} px", f"{self.reprojection_px:.2f} px"),
         ]
         w = max(len(r[0]) for r in rows)
@@ -127,9 +129,19 @@ def run_video(out_dir, *, frames: int | None = None, seed: int = 0, callback=Non
         "swapped": len(log["swapped_frames"]), "outliers": len(x.get("outlier_frames", [])),
         "injected": len(log["outliers"]), "spans": len(spans), "uncertain": int(np.sum(spans[:, 4] < thr)),
         "unfamiliar": int(np.sum(d > lim)),
+        **_lengths_fixed(res.calibration),
         "reprojection_px": float(np.nanmean(res.reprojection_error_px)),
         "files": [out / "tracks.json", out / "camera.json", out / "result.npz"],
     }
+
+
+def _lengths_fixed(calibration: dict) -> dict:
+    """How many fitted length groups, and whether the size, the data fix
+    (:func:`pinrecon.identifiability.proportions_identifiability`)."""
+    ident = (calibration or {}).get("identifiability") or {}
+    groups = list(ident.get("ratios", {}))
+    return {"groups": len(groups), "fixed": len(groups) - len(ident.get("undetermined", [])),
+            "size_fixed": bool(ident.get("size_determined", False))}
 
 
 #: COCO-17 limb segments scored for flips (upper arms, forearms, thighs, shanks)
