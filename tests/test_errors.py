@@ -825,3 +825,25 @@ def test_bvh_walk_lock_error_is_input_error():
     """The locked-joint error of a real clip (details in test_bvh.py) is an InputError."""
     err = raises_input_error(load_bvh, WALK_BVH, CMU_UNIT_M, lock=["LeftLeg"])
     assert (err.field, err.frame) == ("LeftLeg", 1)
+
+
+@pytest.mark.parametrize("camera", ["given", "auto"])
+@pytest.mark.parametrize("key, field, words", [
+    ({"frame": 5, "sigma": 0.0, "points": {"left_hip": [0.0, 0.0, 3.0]}}, "keyframes[0]", "'sigma' must be a positive"),
+    ({"frame": 5, "sigma": 0.02, "points": {"left_hip": [np.nan, 0.0, 3.0]}}, "keyframes[0].points.left_hip", "NaN"),
+    ({"frame": 500, "sigma": 0.02, "points": {"left_hip": [0.0, 0.0, 3.0]}}, "keyframes[0]", "outside the sequence"),
+    ({"frame": 5, "sigma": 0.02, "points": {"lefthip": [0.0, 0.0, 3.0]}}, "keyframes[0].points", "unknown keypoint"),
+])
+def test_keyframes_built_in_python_get_the_files_checks(camera, key, field, words):
+    """Keyframes made with ``pr.Keyframe`` skip the file reader; ``reconstruct`` checks them
+    as it would the file (a sigma of 0 was a FloatingPointError from the solver), and with
+    the auto camera before asking whether they place it (which named none of these)."""
+    import pinrecon as pr
+
+    human = pr.Figure.human()
+    tracks = pr.Tracks(np.random.default_rng(0).uniform(400, 600, (10, 4, 2)),
+                       ["left_hip", "right_hip", "left_knee", "right_knee"], 30.0)
+    cam = pr.Perspective.look_at([0.0, 1.0, -4.0], [0.0, 1.0, 0.0]) if camera == "given" else "auto"
+    err = raises_input_error(pr.reconstruct, human, tracks, cam, pr.Keyframes([pr.Keyframe(**key)]),
+                             image_size=(1280, 720))
+    assert err.field == field and words in str(err)

@@ -157,6 +157,8 @@ def _camera_and_mode(figure, tracks, camera, keyframes, calibrate, image_size=No
         if calibrate is None:
             mode = "lengths+camera" if mode == "lengths" else "camera"
         posed = has_point_keyframes(keyframes)
+        if posed:  # their own faults (a frame outside the clip, a misspelt name) first, by name
+            keyframes.validate(figure, tracks.T)
         placed = placed_by_keyframes(camera)
         if posed and not placed:  # the keyframes' world is not the gauge camera's: they would contradict it
             n = len(keyframe_correspondences(tracks, keyframes)[0])

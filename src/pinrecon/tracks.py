@@ -355,7 +355,7 @@ class Keyframes:
     def to_dict(self) -> dict:
         items = []
         for k in self.keyframes:
-            d = {"frame": k.frame, "sigma": k.sigma}
+            d = {"frame": _plain(k.frame), "sigma": _plain(k.sigma)}
             vals = k.points if k.points is not None else k.joints
             d[k.kind] = {n: (np.asarray(v, float).tolist() if np.ndim(v) else float(v)) for n, v in vals.items()}
             items.append(d)
@@ -369,7 +369,10 @@ class Keyframes:
         atomic_write_text(path, json.dumps(self.to_dict(), indent=1))
 
     def validate(self, figure, n_frames: int) -> None:
-        """Check frames are inside ``[0, n_frames)`` and every name exists in ``figure``."""
+        """Check what a keyframes file is checked for when read (integer frames, positive
+        ``sigma``, finite ``[x, y, z]`` points: keyframes built in Python skip the reader),
+        that frames are inside ``[0, n_frames)`` and that every name exists in ``figure``."""
+        Keyframes.from_dict(self.to_dict(), source=self.source)
         for i, k in enumerate(self.keyframes):
             fld = f"keyframes[{i}]"
             if not 0 <= k.frame < n_frames:
@@ -394,6 +397,11 @@ class Keyframes:
                             field=f"{fld}.joints.{name}",
                             frame=k.frame,
                         )
+
+
+def _plain(value):
+    """A NumPy scalar as the Python number it holds (JSON's and the reader's types)."""
+    return value.item() if isinstance(value, np.generic) else value
 
 
 def load_keyframes(path: str | os.PathLike) -> Keyframes:
