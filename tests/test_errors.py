@@ -847,3 +847,14 @@ def test_keyframes_built_in_python_get_the_files_checks(camera, key, field, word
     err = raises_input_error(pr.reconstruct, human, tracks, cam, pr.Keyframes([pr.Keyframe(**key)]),
                              image_size=(1280, 720))
     assert err.field == field and words in str(err)
+
+
+def test_tracks_with_no_observed_point_are_one_clear_error():
+    """Every shared point missing in every frame: one InputError naming the points, not a
+    NumPy reshape error from the first start's solve."""
+    import pinrecon as pr
+
+    names = ["left_hip", "right_hip", "left_knee", "right_knee"]
+    tracks = pr.Tracks(np.full((10, 4, 2), np.nan), names, 30.0, source="empty.json")
+    err = raises_input_error(pr.reconstruct, pr.Figure.human(), tracks, pr.Perspective.look_at([0, 1, -4], [0, 1, 0]))
+    assert err.file == "empty.json" and err.field == "points" and "observed in any frame" in str(err)

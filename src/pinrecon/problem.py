@@ -23,12 +23,19 @@ import numpy as np
 
 from .cameras import Perspective
 from .errors import InputError, UnknownNameError
-from .io.calibration import CalibratedCamera
 from .figure_files import load_keypoint_map
+from .io.calibration import CalibratedCamera
 from .layouts import human_keypoint_map, human_map_for_names, shared_point_names
 from .proportions import Proportions
 from .rows import (
-    CameraScale, GlobalPrior, JointKeyframes, JointLimits, Measurement2D, Points3D, Posture, Smoothing, State,
+    CameraScale,
+    GlobalPrior,
+    JointKeyframes,
+    JointLimits,
+    Measurement2D,
+    Points3D,
+    Smoothing,
+    State,
     smoothing_sigmas,
 )
 from .rows.bones import skeleton_rows
@@ -37,25 +44,10 @@ from .tracks import Keyframe, Keyframes, Markers, Tracks
 from .weights import Weights
 
 __all__ = [
-    "Weights",
-    "ReconstructionProblem",
-    "make_problem",
-    "make_marker_problem",
-    "upsample_factor",
-    "shared_keypoints",
-    "keyframe_rows",
-    "measurement_rows",
-    "prior_rows",
-    "observable_mask",
-    "rest_pose",
-    "resolved_loss",
-    "View",
-    "camera_views",
-    "view_grid",
-    "CALIBRATE_MODES",
-    "check_calibrate",
-    "default_calibrate",
-    "has_point_keyframes",
+    "CALIBRATE_MODES", "ReconstructionProblem", "View", "Weights", "camera_views", "check_calibrate",
+    "default_calibrate", "has_point_keyframes", "keyframe_rows", "make_marker_problem", "make_problem",
+    "measurement_rows", "observable_mask", "prior_rows", "resolved_loss", "rest_pose", "shared_keypoints",
+    "upsample_factor", "view_grid",
 ]
 
 #: what :func:`make_problem` can calibrate: nothing, the figure's segment lengths, the
@@ -599,6 +591,9 @@ def make_problem(
         sub = trk.select(names)
         shared = shared_keypoints(figure, sub.names, trk.source)
         sub = sub.select(shared)
+        if not np.isfinite(sub.points).all(axis=-1).any():
+            raise InputError(f"none of the {len(shared)} point(s) the figure shares with the tracks is observed in any "
+                             "frame", file=trk.source, field="points")
         used += [n for n in shared if n not in used]
         pose_col = n_p + len(pairs) if camera_pose else None
         intr = CameraScale(cam, n_p + len(views), pose_col=pose_col) if "camera" in mode else None
