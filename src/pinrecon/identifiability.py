@@ -14,8 +14,8 @@ prior) prefer. This module says which.
 out: ``S_d``, the Schur complement of their ``J^T J``. Added to the factors' own prior
 (``P``, diagonal) it is the posterior a solve would have without the pose prior, limits
 and smoothing; a factor whose posterior standard deviation stays above half of its
-prior's (``threshold``: the data less than tripled its precision) is *not fixed by the
-data*. The figure's overall size (all factors scaled together, direction ``u``) is
+prior's (``threshold``: the data less than quadrupled its precision) is *not fixed by
+the data*. The figure's overall size (all factors scaled together, direction ``u``) is
 judged by the data's information along ``u`` alone (``u^T S_d u`` against the prior's),
 so groups the data miss (a neck and head placed by the nose only) do not hide a size
 that the rest fixes; each group is judged given the overall size (both covariances
@@ -29,8 +29,8 @@ fixed (the Balancing trial's standing leg: ratios 0.11-0.14); with one view and 
 data every group is therefore reported not fixed, whatever the ratios.
 
 The synthetic subject of ``tests/test_reconstruct.py`` (known factors, 12 COCO points as
-1 cm markers): the limbs' and the pelvis's ratios are 0.02-0.10 and their factors come
-within 0.01 of the truth; the trunk's, shoulders', neck's and head's are 0.57-0.87, and
+1 cm markers): the limbs' and the pelvis's ratios are 0.03-0.11 and their factors come
+within 0.01 of the truth; the trunk's, shoulders', neck's and head's are 0.61-0.92, and
 the trunk and shoulders came out 10 and 8 % from the truth.
 """
 
@@ -130,5 +130,5 @@ def proportions_identifiability(problem, Q, g, *, threshold: float = UNDETERMINE
         "size_determined": bool(size_ratio <= threshold) and not one_view,
         "threshold": float(threshold),
         "data_rows": data,
-        "views": len(getattr(problem, "views", None) or []),
+        "views": views,
     }
