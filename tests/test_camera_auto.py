@@ -88,8 +88,8 @@ def test_camera_pose_from_keyframes_is_exact_on_exact_data_from_four_points():
 
 def test_one_keyframe_places_the_auto_camera_at_its_default_focal_length():
     """One 3D keyframe (the walk's 12 body points at frame 0, 5 cm noise) cannot fix the
-    focal length: the resection with it free ran along that valley and put the camera 13 m
-    (60 degrees) and 84 m (45 degrees) from the true one. ``auto_camera`` now places it at
+    focal length: the resection with it free failed here at 45 degrees (and landed 1.2 m
+    off at 60; on bench_real's detector tracks 84 and 13 m off). ``auto_camera`` places it at
     the default focal length instead (1663 px for 60 degrees across 1920 px; true 1200), as
     far off as that focal length makes it: the distance 1663 / 1200 of the true one, in
     about the true direction (measured 1.43 and 1.35 times the distance, 7.9 and 12.4

@@ -181,7 +181,8 @@ def camera_pose_from_keyframes(X, uv, image_size, f: float, *, rotations=()) -> 
 
     This places the auto camera when the point keyframes cannot fix the focal length too:
     :func:`camera_from_keyframes` then runs along the focal length's valley (from one
-    keyframe of the bundled walk it put the camera 13-84 m from the truth)."""
+    keyframe of the bundled walk, on ``bench/bench_real.py``'s detector tracks, it put the
+    camera 13-84 m from the truth)."""
     from scipy.optimize import least_squares
 
     X, uv = np.asarray(X, float), np.asarray(uv, float)
