@@ -37,7 +37,7 @@ from scipy.linalg.lapack import dpbtrf as _pbtrf
 from scipy.linalg.lapack import dpbtrs as _pbtrs
 from scipy.linalg.lapack import dtbtrs as _tbtrs
 
-__all__ = ["ActiveNormalEquations", "ArrowheadFactor", "BandedNormalEquations", "forward_solve"]
+__all__ = ["ActiveNormalEquations", "ArrowheadFactor", "BandedNormalEquations", "forward_solve", "schur_complement"]
 
 #: frames written as slices when a row block's frames form at most this many runs
 _MAX_RUNS = 16
@@ -570,6 +570,23 @@ class BandedNormalEquations:
         return ab
 
 
+def schur_complement(c: np.ndarray, B: np.ndarray, C: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(Z, S)`` of the arrowhead ``[[A, B], [B^T, C]]`` given ``A = L L^T`` as the lower
+    band factor ``c``: ``Z = L^-1 B`` (one banded forward substitution per column of ``B``
+    that couples to the motion; a zero column, e.g. a held global, stays zero) and the
+    Schur complement ``S = C - Z^T Z`` (n_g, n_g), not factored (it may be only semi-definite
+    when some rows are left out: :func:`pinrecon.solver.globals_information`)."""
+    n_g = B.shape[1]
+    coupled = np.flatnonzero(np.abs(B).max(axis=0) > 0) if B.shape[0] else np.zeros(0, int)
+    if len(coupled) == n_g:
+        Z = forward_solve(c, B)
+    else:
+        Z = np.zeros(B.shape, order="F")
+        if len(coupled):
+            Z[:, coupled] = forward_solve(c, B[:, coupled])
+    return Z, C - Z.T @ Z
+
+
 class ArrowheadFactor:
     """Factor ``[[A, B], [B^T, C]]`` (A banded in LAPACK lower storage, already damped;
     B (N, n_g) dense; C (n_g, n_g), already damped) once, then solve for any right-hand
@@ -588,16 +605,7 @@ class ArrowheadFactor:
         self.n_g = 0 if B is None else B.shape[1]
         self.Z = self.S = None
         if self.n_g:
-            # Z = L^-1 B, one banded forward substitution per global that couples to the
-            # motion (a column of B that is zero, e.g. a held global, stays zero)
-            coupled = np.flatnonzero(np.abs(B).max(axis=0) > 0) if B.shape[0] else np.zeros(0, int)
-            if len(coupled) == self.n_g:
-                Z = forward_solve(c, B)
-            else:
-                Z = np.zeros(B.shape, order="F")
-                if len(coupled):
-                    Z[:, coupled] = forward_solve(c, B[:, coupled])
-            S = C - Z.T @ Z
+            Z, S = schur_complement(c, B, C)
             self.Z, self.S = Z, cho_factor(S, lower=True, check_finite=False)
 
     def solve(self, b_x: np.ndarray, b_g: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray | None]:

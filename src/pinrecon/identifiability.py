@@ -94,7 +94,8 @@ def proportions_identifiability(problem, Q, g, *, threshold: float = UNDETERMINE
         the data, as under one camera without a 3D keyframe);
     ``undetermined``: the groups over ``threshold`` (every group with one view and no 3D
         data, see above); ``size_determined``;
-    ``threshold``; ``data_rows``: the row kinds read as data; ``views``: the cameras.
+    ``threshold``; ``data_rows``: the row kinds read as data; ``views``: the cameras;
+    ``one_view``: whether the one-view rule above decided (one camera's 2D rows only).
     """
     props = getattr(problem, "proportions", None)
     if props is None or g is None or not np.size(g):
@@ -131,4 +132,5 @@ def proportions_identifiability(problem, Q, g, *, threshold: float = UNDETERMINE
         "threshold": float(threshold),
         "data_rows": data,
         "views": views,
+        "one_view": bool(one_view),
     }

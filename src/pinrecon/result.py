@@ -352,7 +352,7 @@ def _identifiability_lines(ident, groups: list[str]) -> list[str]:
     und = [g for g in ident.get("undetermined", []) if g in groups]
     every = bool(und) and len(und) == len(groups)
     lines = []
-    if every and set(ident.get("data_rows", [])) <= {"measurement"} and ident.get("views", 1) <= 1:  # one view
+    if every and ident.get("one_view"):
         lines.append("  NOT fixed by the tracks alone: any of these lengths. One view bounds each from below (a limb "
                      "is at least as long as its longest image), but a longer one leaning out of the image costs "
                      "nothing in the tracks: the pose prior and the joint limits chose the values. A 3D keyframe, "

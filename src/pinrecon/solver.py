@@ -47,7 +47,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.linalg import LinAlgError
 
-from .banded import ActiveNormalEquations, ArrowheadFactor, BandedNormalEquations, forward_solve
+from .banded import ActiveNormalEquations, ArrowheadFactor, BandedNormalEquations, schur_complement
 
 __all__ = ["SolverOptions", "IterationReport", "SolveResult", "globals_of", "globals_information", "solve", "BandedNormalEquations", "ArrowheadFactor"]
 
@@ -175,9 +175,7 @@ def globals_information(problem, x, g, active=None, *, rows: Callable | None = N
     diag = normal.diagonal()
     floor = jitter * max(float(diag.max()) if diag.size else 0.0, 1e-300)
     normal.ab[0] += floor + np.where(diag > floor, 0.0, 1.0)
-    c = ArrowheadFactor(normal.ab).c
-    Z = forward_solve(c, np.asfortranarray(B)) if B.shape[0] else np.zeros(B.shape)
-    S = C - Z.T @ Z
+    _, S = schur_complement(ArrowheadFactor(normal.ab).c, B, C)
     return 0.5 * (S + S.T)
 
 
