@@ -161,6 +161,8 @@ def test_a_camera_placed_by_two_keyframes_says_its_focal_length_is_not_determine
     rep = res.calibration["camera_auto"]["focal"]
     lo, hi = rep["interval_px"]
     assert rep["determined"] is True and lo <= F_TRUE <= hi and hi / lo < 1.15
+    klo, khi = res.calibration["camera_auto"]["keyframe_focal"]["interval_px"]
+    assert klo <= rep["focal_px"] <= khi and "keyframes" not in rep  # the fit within their own: no doubt
     E = res.keypoints3d[:, res.figure.keypoint_index(BODY)]
     assert 1000 * np.linalg.norm(E - P, axis=-1).mean() < 20.0
 

@@ -148,7 +148,9 @@ def test_no_camera_file_with_four_keyframes_from_the_triangulation():
     calibration's world and the solve refines it. Measured: 0.87 m from Pose2Sim's camera 1,
     MPJPE 89.8 mm in that world against the triangulation (143.9 with the calibrated camera
     and no keyframes), PA-MPJPE 70.1. The focal length (1222 px against the calibration's
-    1681) is reported NOT determined, and the advice is more keyframes, not keyframes."""
+    1681) is reported NOT determined, and the advice is more keyframes, not keyframes. The
+    keyframes alone (their reprojection profile) put it at 1613-2044 px, which holds the
+    calibration's and excludes the fit: the report says so and gives their interval."""
     import warnings
 
     from pinrecon.io.calibration import load_cameras
@@ -171,3 +173,7 @@ def test_no_camera_file_with_four_keyframes_from_the_triangulation():
     focal = res.calibration["camera_auto"]["focal"]
     assert not focal["determined"] and "more 3D keyframes" in focal["message"]
     assert any("more 3D keyframes" in str(w.message) for w in caught)
+    lo, hi = focal["interval_px"]  # the keyframes' own: the calibration inside, the fit outside
+    assert focal["keyframes"]["excludes_fit"] and lo < cal.K[0, 0] < hi
+    assert not lo / 1.1 <= cam.K[0, 0] <= hi * 1.1 and focal["focal_px"] == pytest.approx(cam.K[0, 0])
+    assert f"{lo:.0f}-{hi:.0f} px" in focal["message"] and "outside that" in focal["message"]

@@ -268,11 +268,22 @@ class FocalReport:
     #: (:func:`keyframe_focal_interval`, ``{"interval_px", "bounded", "points", "frames"}``): the
     #: interval is then the envelope of both, and not determined when theirs is too wide. With its
     #: pose refined by the solve, the solve's profile (the pose re-solved at every focal length,
-    #: the keyframe rows in the cost) says it alone
+    #: the keyframe rows in the cost) says it alone, unless it ends outside the keyframes' own
+    #: interval (bounded on both sides, by more than ``tolerance``): then ``keyframes`` holds theirs
+    #: with ``"excludes_fit": True``, the interval is theirs and the focal length not determined
+    #: (the solve's profile valley is the pose prior's, :func:`doubt_focal`)
     keyframes: dict | None = None
 
     def message(self) -> str:
         lo, hi = self.interval_px
+        if self.keyframes is not None and self.keyframes.get("excludes_fit"):
+            k = self.keyframes
+            return (f"the focal length is NOT determined: the point keyframes alone ({k['points']} points on "
+                    f"{k['frames']} frames, their reprojection profile) put it at {lo:.0f}-{hi:.0f} px (95 %), and the "
+                    f"solve with the tracks moved it to {self.focal_px:.0f} px, outside that: one view fixes it only "
+                    "through the pose prior, which pulls it away from the keyframes where the poses are unlike its "
+                    "clips. Give a calibrated camera (--camera FILE) or more 3D keyframes, spread over the clip and "
+                    "in depth, for a metric focal length")
         if self.keyframes is not None and self.determined:
             return (f"focal length {self.focal_px:.0f} px (started at {self.start_px:.0f} px), {lo:.0f} to {hi:.0f} px "
                     "at 95 % (the MAP cost profile, and the point keyframes' own, which place the camera)")
@@ -515,6 +526,12 @@ def settle_focal(problem, res, auto: dict | None, *, options=None, rounds: int =
         rep = dataclasses.replace(rep, interval_px=(klo, khi) if wide else (min(lo, klo), max(hi, khi)),
                                   bounded=tuple(kf["bounded"]) if wide else rep.bounded, determined=not wide,
                                   keyframes=kf)
+    elif kf is not None and all(kf["bounded"]) and not placed and not \
+            kf["interval_px"][0] / (1.0 + tolerance) <= rep.focal_px <= kf["interval_px"][1] * (1.0 + tolerance):
+        # the solve refined the camera's pose and left the keyframes' own interval: it is the
+        # tracks' (the prior's) focal length, not theirs
+        rep = dataclasses.replace(rep, interval_px=tuple(kf["interval_px"]), bounded=(True, True), determined=False,
+                                  keyframes={**kf, "excludes_fit": True})
     if not rep.determined:
         import warnings
 
