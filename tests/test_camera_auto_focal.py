@@ -179,3 +179,9 @@ def test_a_focal_length_resting_on_an_unfamiliar_prior_is_doubted():
         out = doubt_focal(auto, 0.8)
     assert out["focal"]["determined"] is False and out["focal"]["unfamiliar_share"] == 0.8
     assert rep["determined"] is True  # the input is not changed
+    # solved again with a broader prior because the default knew 84 % of the poses not: doubted
+    # on the default's share, whatever the broader prior's own
+    assert doubt_focal(auto, 0.4, broader="human_pose_mixture") is auto
+    with pytest.warns(FocalLengthWarning, match="default pose prior did not know 84 %"):
+        out = doubt_focal(auto, 0.84, broader="human_pose_mixture")
+    assert out["focal"]["determined"] is False and "broader human_pose_mixture" in out["focal"]["message"]

@@ -76,7 +76,9 @@ def test_against_pose2sims_four_camera_triangulation(your_video):
 def test_the_focal_length_the_prior_gives_is_not_claimed(your_video):
     """Every frame's pose is unlike the prior's clips, and one view owes its focal length to
     the prior: the fit (990 px, its cost profile 963-1031 px) is far from the 1681 px of
-    Pose2Sim's own calibration of this camera, so the report must not call it determined."""
+    Pose2Sim's own calibration of this camera, so the report must not call it determined. The
+    default prior knew none of the poses, so the clip was solved with the broader mixture,
+    and the report says the focal length rests on that fallback."""
     from pinrecon.io.calibration import load_cameras
 
     res = pr.load_result(your_video / "result.npz")
@@ -87,7 +89,8 @@ def test_the_focal_length_the_prior_gives_is_not_claimed(your_video):
     lo, hi = rep["interval_px"]
     assert not lo <= true_f <= hi  # the profile's interval misses the truth ...
     assert rep["determined"] is False and rep["unfamiliar_share"] > 0.5  # ... and the report says so
-    assert "NOT determined" in res.summary() and "unlike its clips" in rep["message"]
+    assert "NOT determined" in res.summary() and "default pose prior did not know 100 %" in rep["message"]
+    assert "human_pose_mixture" in rep["message"]  # the clip was solved with the broader prior, named
 
 
 def test_coco17_points_through_pose2sims_calibration_of_camera_1():

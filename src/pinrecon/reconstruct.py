@@ -398,6 +398,8 @@ def reconstruct(
             problem, res, "auto" if floor is None else floor, "auto" if contact is None else contact,
             settings=contact_settings, options=options, callback=callback,
         )
+    if switch is not None:  # the focal length rests on the broader prior, a fallback's
+        auto = doubt_focal(auto, switch[1], limit=SWITCH_SHARE, broader=switch[0])
     result = _package(problem, res, auto)
     if feet is not None:
         result.extras.update(feet.to_extras())

@@ -456,13 +456,18 @@ def profile_interval(points, f_fit: float, *, threshold: float = PROFILE_THRESHO
     return (cross(0), cross(1)), (True, True), True
 
 
-def doubt_focal(auto: dict | None, unfamiliar_share: float, *, limit: float = 0.5) -> dict | None:
+def doubt_focal(auto: dict | None, unfamiliar_share: float, *, limit: float = 0.5,
+                broader: str | None = None) -> dict | None:
     """The auto camera's description ``auto`` with its focal report marked NOT determined
     (and a :class:`FocalLengthWarning`) when more than ``limit`` of the frames' poses are
     unlike the pose prior's clips (``unfamiliar_share``, :mod:`pinrecon.unfamiliar`): one
     view fixes the focal length only through the prior (the valley of its cost profile is
     the prior's), which there extrapolates. Pose2Sim's real balancing trial, every frame
     unlike the prior, fitted 960 px "927-987 at 95 %" against its calibration's 1681 px.
+    With ``broader``, the share is the default prior's, and the clip was solved again with
+    that broader prior (:func:`pinrecon.unfamiliar.broader_prior`), whose valley is no surer:
+    bench_real's dance (05_11, first and last keyframes at 60 degrees, no camera file) fitted
+    1528 px "1525-1688 px at 95 %" against a true 1200.
     Unchanged when the focal length was not determined anyway, or point keyframes fixed it."""
     focal = (auto or {}).get("focal")
     if not isinstance(focal, dict) or not focal.get("determined") or focal.get("keyframes") or \
@@ -470,10 +475,13 @@ def doubt_focal(auto: dict | None, unfamiliar_share: float, *, limit: float = 0.
         return auto
     lo, hi = focal["interval_px"]
     keyed = str(auto.get("pose", "")).startswith("from the point keyframes")
-    msg = (f"the focal length is NOT determined: one view fixes it only through the pose prior, and "
-           f"{100 * unfamiliar_share:.0f} % of the frames' poses are unlike its clips; fitted {focal['focal_px']:.0f} px, "
-           f"which the MAP cost profile put at {lo:.0f}-{hi:.0f} px (95 %) taking the prior as right. Give a calibrated "
-           f"camera (--camera FILE) or {'more 3D keyframes, spread over the clip and in depth,' if keyed else '3D keyframes'}"
+    why = (f"the default pose prior did not know {100 * unfamiliar_share:.0f} % of the frames' poses (the clip was "
+           f"solved again with the broader {broader}, a fallback no surer of them)" if broader else
+           f"{100 * unfamiliar_share:.0f} % of the frames' poses are unlike its clips")
+    msg = (f"the focal length is NOT determined: one view fixes it only through the pose prior, and {why}; "
+           f"fitted {focal['focal_px']:.0f} px, which the MAP cost profile put at {lo:.0f}-{hi:.0f} px (95 %) taking the "
+           f"prior as right. Give a calibrated camera (--camera FILE) or "
+           f"{'more 3D keyframes, spread over the clip and in depth,' if keyed else '3D keyframes'}"
            " for a metric focal length")
     import warnings
 
