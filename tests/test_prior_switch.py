@@ -81,9 +81,14 @@ def test_unknown_poses_are_solved_again_with_the_broader_prior(random_motion, tm
     # it is the solve with the broader prior named, from the same start
     mixture = _solve(fig, tracks, cam, keys, weights=Weights(pose_prior_model="human_pose_mixture"))
     np.testing.assert_allclose(res.q, mixture.q, atol=1e-9)
-    # its distances are the mixture's: its limit, not the default's
-    assert float(res.extras["prior_distance_limit"]) == float(mixture.extras["prior_distance_limit"])
-    assert float(res.extras["prior_distance_limit"]) != float(named.extras["prior_distance_limit"])
+    # its poses are judged by the default's clips (the broader prior is a fallback): the default
+    # prior's distances of the solved motion, by hand, and its limit, not the mixture's
+    assert str(res.extras["prior_distance_model"]) == "human_pose" and "prior_distance_model" not in named.extras
+    np.testing.assert_allclose(res.extras["prior_distance"], prior.distances(res.q), rtol=1e-9)
+    assert float(res.extras["prior_distance_limit"]) == float(named.extras["prior_distance_limit"])
+    assert float(res.extras["prior_distance_limit"]) != float(mixture.extras["prior_distance_limit"])
+    assert "poses unlike the default pose prior's (human_pose) clips in" in res.summary()
+    assert "the broader human_pose_mixture they were solved with is a fallback" in res.summary()
     assert f"pose prior: human_pose_mixture (the default did not know {100 * share:.0f} % of the frames" in res.summary()
     res.save(tmp_path / "r.npz")  # a saved result says it too
     back = pr.load_result(tmp_path / "r.npz")

@@ -362,7 +362,7 @@ def test_docs_result_keys_are_the_keys_result_save_writes(human, tmp_path):
         extra = set(z.files) - set(written)
     extra |= set(FOOT_EXTRAS) | set(FaultReport().to_extras())
     extra |= set(HypothesisReport(chains=[], states=np.zeros((3, 0), int), gaps=np.zeros((3, 0))).to_extras())
-    extra |= set(UnfamiliarPoses(np.zeros(3), 9.0).to_extras()) | set(switch_extras("human_pose_mixture", 0.9))
+    extra |= set(UnfamiliarPoses(np.zeros(3), 9.0, model="human_pose").to_extras()) | set(switch_extras("human_pose_mixture", 0.9))
     extra |= set(TurnStage([]).to_extras()) | set(MirrorStage([]).to_extras())
     extra |= set(Stability(0.01, (0,), np.zeros((1, 3)), np.zeros((3, 1)), ["nose"], 30.0, 30.0).to_extras())
     cells = re.findall(r"^\| ([^|]+) \|", sometimes, re.M)

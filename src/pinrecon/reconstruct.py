@@ -359,7 +359,7 @@ def reconstruct(
             return result
         problem = make_problem(**{**inputs, "weights": replace(weights, pose_prior_model=switch[0])}, calibrate=mode)
         result = _package(problem, solve_windowed(problem, start, options, callback, window=span,
-                                                  mirrors=_mirrors(problem, init)), auto, identify=False)
+                                                  mirrors=_mirrors(problem, init)), auto, identify=False, judge=default)
         result.extras.update(switch_extras(*switch))
         return result
     if _pose_unknown(auto, mode, camera):  # the keyframes placed the auto camera: its place refined too
@@ -398,9 +398,8 @@ def reconstruct(
             problem, res, "auto" if floor is None else floor, "auto" if contact is None else contact,
             settings=contact_settings, options=options, callback=callback,
         )
-    if switch is not None:  # the focal length rests on the broader prior, a fallback's
-        auto = doubt_focal(auto, switch[1], limit=SWITCH_SHARE, broader=switch[0])
-    result = _package(problem, res, auto)
+    # a clip solved again with the broader prior is judged by the default's clips (a fallback knows no poses)
+    result = _package(problem, res, auto, judge=None if switch is None else default)
     if feet is not None:
         result.extras.update(feet.to_extras())
     if switch is not None:
@@ -535,13 +534,16 @@ def _lengths_from_tracks(problem: ReconstructionProblem, q0: np.ndarray, start: 
 
 
 def _package(problem: ReconstructionProblem, res: SolveResult, auto: dict | None = None, *,
-             identify: bool = True) -> Result:
+             identify: bool = True, judge: str | None = None) -> Result:
     """The solved trajectory as a :class:`Result`: keypoints and per-frame reprojection
     error, over all cameras and per camera. With global unknowns: the calibrated figure,
     its keypoints, the fitted cameras and ``calibration`` (with fitted lengths, and
     ``identify``, which of them the data fix: :func:`~pinrecon.identifiability.
     proportions_identifiability`; a windowed solve brings its own, from the leading
-    stretch that fitted them, instead of assembling the whole clip at once)."""
+    stretch that fitted them, instead of assembling the whole clip at once). ``judge``, the
+    prior whose clips the poses are measured against (:func:`~pinrecon.unfamiliar.
+    unfamiliar_poses`) when it is not the one solved with: the default of a clip solved again
+    with the broader one."""
     g = globals_of(res)
     g = problem.g0 if g is None else g
     Q = problem.figure.normalize(res.x)
@@ -570,9 +572,10 @@ def _package(problem: ReconstructionProblem, res: SolveResult, auto: dict | None
     with np.errstate(invalid="ignore", divide="ignore"):
         err = np.where(err_n > 0, err_sum / np.maximum(err_n, 1), np.nan)
     # where the pose prior extrapolates, and limb depths from 2D with it (3D markers measure them)
-    unfamiliar = unfamiliar_poses(problem, Q) if getattr(problem, "markers", None) is None else None
+    unfamiliar = unfamiliar_poses(problem, Q, model=judge) if getattr(problem, "markers", None) is None else None
     if unfamiliar is not None:  # ... and with it an auto camera's focal length, which one view owes to the prior
-        auto = doubt_focal(auto, unfamiliar.share, limit=SWITCH_SHARE)
+        auto = doubt_focal(auto, unfamiliar.share, limit=SWITCH_SHARE,
+                           broader=problem.weights.pose_prior_model if judge else None)
     ident = proportions_identifiability(problem, Q, g) if identify else getattr(res, "identifiability", None)
     identified = {"identifiability": ident} if ident else {}
     result = Result(

@@ -184,9 +184,13 @@ class Result:
         d, lim, sp = unfamiliar_frames(x)
         if len(sp):
             n = int(np.sum(d > lim))
-            lines.append(f"poses unlike the pose prior's clips in {n} of {len(d)} frames ({100 * n / len(d):.0f} %; "
+            judge = str(x["prior_distance_model"]) if "prior_distance_model" in x else ""
+            whose = (f"the default pose prior's ({judge}) clips" if judge else "the pose prior's clips")
+            fallback = (f"; the broader {x['prior_model']!s} they were solved with is a fallback, no surer of them"
+                        if judge and "prior_model" in x else "")
+            lines.append(f"poses unlike {whose} in {n} of {len(d)} frames ({100 * n / len(d):.0f} %; "
                          f"Mahalanobis distance > {lim:.1f}, their 99th percentile): limb depths there are the "
-                         "prior's extrapolation and may be mirrored; 3D keyframes there would decide them")
+                         f"prior's extrapolation and may be mirrored{fallback}; 3D keyframes there would decide them")
             for a, b in sp[np.argsort([-d[a:b].max() for a, b in sp])][:limit]:
                 lines.append(f"  frames {a}-{b - 1} ({a / self.fps:.2f}-{(b - 1) / self.fps:.2f} s), "
                              f"distance up to {d[a:b].max():.1f}")

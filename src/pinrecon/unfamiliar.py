@@ -27,16 +27,19 @@ clip is solved again with a broader one (:func:`broader_prior`: the generic huma
 Gaussian -> its mixture of 8 Gaussians over 57 clips, ``models/priors/README.md``), and the
 result says so (``prior_model``, ``prior_default_unfamiliar``). On bench_real's dance the
 mixture takes first-and-last-keyframe PA-MPJPE from 113 to about 55 mm; on Pose2Sim's real
-balancing trial from 141 to 90 mm (bench/README.md).
+balancing trial from 141 to 90 mm (bench/README.md). The result's poses are still measured
+against the default's clips (``unfamiliar_poses(model=)``, ``prior_distance_model``): the
+broader prior is a fallback, and on the dance its flipped limbs were as frequent in the frames
+it knew as in the rest.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .rows.posture import PosePrior
+from .rows.posture import PosePrior, posture_row
 
 __all__ = ["BROADER_PRIOR", "SWITCH_SHARE", "UnfamiliarPoses", "broader_prior", "switch_extras", "unfamiliar_poses"]
 
@@ -57,6 +60,9 @@ class UnfamiliarPoses:
     distance: np.ndarray
     limit: float
     spans: list[tuple[int, int]] = field(default_factory=list)
+    #: the prior measured against when it is not the one the problem was solved with (the
+    #: default of a clip solved again with a broader one), else None
+    model: str | None = None
 
     @property
     def share(self) -> float:
@@ -65,15 +71,28 @@ class UnfamiliarPoses:
 
     def to_extras(self) -> dict:
         return {"prior_distance": np.asarray(self.distance, float), "prior_distance_limit": np.float64(self.limit),
-                "prior_unfamiliar_spans": np.array(self.spans, int).reshape(-1, 2)}
+                "prior_unfamiliar_spans": np.array(self.spans, int).reshape(-1, 2),
+                **({"prior_distance_model": np.array(self.model)} if self.model else {})}
 
 
-def unfamiliar_poses(problem, Q, *, quantile: str = "99", merge_s: float = 0.2) -> UnfamiliarPoses | None:
+def unfamiliar_poses(problem, Q, *, quantile: str = "99", merge_s: float = 0.2,
+                     model: str | None = None) -> UnfamiliarPoses | None:
     """The frames of trajectory ``Q`` whose pose the problem's pose prior does not know
     (beyond its clips' ``quantile`` percentile of distance); runs closer than ``merge_s``
     seconds are one span. None when the problem has no learned pose prior (figures other
-    than the generic human unless asked, ``Weights(pose_prior=None)``)."""
-    prior = next((r for r in problem.rows if isinstance(r, PosePrior)), None)
+    than the generic human unless asked, ``Weights(pose_prior=None)``).
+
+    With ``model`` (a prior's name), measured against that prior instead: the default of a
+    clip solved again with the broader one (:func:`broader_prior`), which is a fallback, not
+    a prior that knows the poses. On bench_real's dance (05_11) the mixture called 11 % of
+    the solved frames unfamiliar, and its flipped limb segments were as frequent in the frames
+    it knew (22.7 % at 60 degrees with first and last keyframes, 10.6 % at 45 without) as
+    overall (22.1 %, 10.8 %); the default single Gaussian called every frame unfamiliar."""
+    if model is not None:
+        prior = posture_row(problem.figure, problem.n_frames, replace(problem.weights, pose_prior_model=model))
+        prior = prior if isinstance(prior, PosePrior) else None
+    else:
+        prior = next((r for r in problem.rows if isinstance(r, PosePrior)), None)
     limit = None if prior is None else prior.quantiles.get(quantile)
     if limit is None:
         return None
@@ -86,7 +105,7 @@ def unfamiliar_poses(problem, Q, *, quantile: str = "99", merge_s: float = 0.2) 
             spans[-1] = (spans[-1][0], f + 1)
         else:
             spans.append((f, f + 1))
-    return UnfamiliarPoses(d, float(limit), spans)
+    return UnfamiliarPoses(d, float(limit), spans, model)
 
 
 def broader_prior(used: str | None, model: str, extras: dict) -> tuple[str, float] | None:
