@@ -118,3 +118,14 @@ def test_the_workbench_keeps_the_broader_prior(random_motion):
     assert session.weights.pose_prior_model == "human_pose_mixture"
     named = Session(fig, tracks, cam, keys, result=res, floor="none", weights=Weights(pose_prior_model="human_pose"))
     assert named.weights.pose_prior_model == "human_pose"  # a prior the user named is kept
+
+
+def test_a_clip_solved_in_windows_is_judged_by_the_default_too(random_motion):
+    fig, tracks, cam, keys = random_motion
+    res = _solve(fig, tracks, cam, keys, window=20)
+    assert str(res.extras["prior_model"]) == "human_pose_mixture"
+    assert str(res.extras["prior_distance_model"]) == "human_pose"
+    setup = build_problem(fig, tracks, cam, keys, calibrate="none", weights=Weights(pose_prior_model="human_pose"))
+    prior = next(r for r in setup.problem.rows if isinstance(r, PosePrior))
+    np.testing.assert_allclose(res.extras["prior_distance"], prior.distances(res.q), rtol=1e-9)
+    assert float(res.extras["prior_distance_limit"]) == float(prior.quantiles["99"])
