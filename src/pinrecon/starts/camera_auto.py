@@ -281,9 +281,9 @@ class FocalReport:
             return (f"the focal length is NOT determined: the point keyframes alone ({k['points']} points on "
                     f"{k['frames']} frames, their reprojection profile) put it at {lo:.0f}-{hi:.0f} px (95 %), and the "
                     f"solve with the tracks moved it to {self.focal_px:.0f} px, outside that: one view fixes it only "
-                    "through the pose prior, which pulls it away from the keyframes where the poses are unlike its "
-                    "clips. Give a calibrated camera (--camera FILE) or more 3D keyframes, spread over the clip and "
-                    "in depth, for a metric focal length")
+                    "through the pose prior, which has pulled it away from the keyframes (as it does where the poses "
+                    "are unlike its clips). Give a calibrated camera (--camera FILE) or more 3D keyframes, spread over "
+                    "the clip and in depth, for a metric focal length")
         if self.keyframes is not None and self.determined:
             return (f"focal length {self.focal_px:.0f} px (started at {self.start_px:.0f} px), {lo:.0f} to {hi:.0f} px "
                     "at 95 % (the MAP cost profile, and the point keyframes' own, which place the camera)")
