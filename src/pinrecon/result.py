@@ -179,7 +179,7 @@ class Result:
                 lines.append(f"  ... and {len(ties) - limit} more")
         if "prior_default_unfamiliar" in x:
             lines.append(f"pose prior: {x['prior_model']!s} (the default did not know "
-                         f"{100 * float(x['prior_default_unfamiliar']):.0f} % of the frames' poses: solved again "
+                         f"{100 * float(x['prior_default_unfamiliar']):.0f} % of the frames' poses as first solved: solved again "
                          "with this broader one; pinrecon.unfamiliar.broader_prior)")
         d, lim, sp = unfamiliar_frames(x)
         if len(sp):
