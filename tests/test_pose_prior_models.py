@@ -111,6 +111,31 @@ def test_fit_tool_bvh_mode_against_the_text(tmp_path):
     assert data["rest_direction_spread_deg"] == 0.0  # one clip
 
 
+def test_fit_tool_reads_the_daz_release(tmp_path):
+    """The CMU release with Daz joint names (``lShldr``, ``rShin``, ...: the salsa clips of
+    subjects 60 and 61 are published so) fitted as the same motion under motionbuilder names:
+    the walk's first 40 frames with its 12 joints renamed give the same joint angles."""
+    tool = _tool()
+    lines = bundled_clip("walk").read_text().splitlines()
+    at = lines.index("MOTION")
+    lines[at + 1] = "Frames: 41"
+    mb = tmp_path / "mb.bvh"
+    mb.write_text("\n".join(lines[: at + 3 + 41]) + "\n")
+    daz = tmp_path / "daz.bvh"
+    text = mb.read_text()
+    for side, short in (("Left", "l"), ("Right", "r")):  # the two releases' names, from their files
+        for name, other in (("Arm", "Shldr"), ("ForeArm", "ForeArm"), ("Hand", "Hand"), ("UpLeg", "Thigh"),
+                            ("Leg", "Shin"), ("Foot", "Foot")):
+            text = re.sub(rf"\b{side}{name}\b", short + other, text)
+    daz.write_text(text)
+    assert "LeftForeArm" not in text and "lForeArm" in text
+    fig = pr.Figure.human()
+    q_mb, err_mb = tool.fit_clip(str(mb), fig)
+    q_daz, err_daz = tool.fit_clip(str(daz), fig)
+    assert len(q_mb) == 10 and err_mb < 0.04  # 40 frames at 120 fps -> 30; the human fits within 4 cm
+    assert np.allclose(q_daz, q_mb, atol=1e-6) and err_daz == pytest.approx(err_mb, abs=1e-6)
+
+
 def test_the_bvh_prior_row_and_its_distance_by_hand():
     fig, q, _ = bundled_motion("walk")
     q = q[:60:4]

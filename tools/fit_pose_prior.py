@@ -2,7 +2,8 @@
 
 ``--figure human`` (default; ``models/priors/human_pose.json``):
 
-Each clip's 12 COCO-17 body joint centres (shoulders, elbows, wrists, hips, knees, ankles),
+Each clip's 12 COCO-17 body joint centres (shoulders, elbows, wrists, hips, knees, ankles; BVH
+of the CMU motionbuilder, 3ds Max or Daz releases, told apart by their joint names),
 taken at 30 fps (at most ``--max-frames`` evenly spaced frames of each) and scaled so that the median hip-knee-ankle length is the human figure's,
 are fitted by ``pinrecon.reconstruct_markers`` with ``Figure.human()`` (its anatomical
 limits; the rest-pose posture prior, not this one); the prior is the mean and standard
@@ -45,7 +46,7 @@ from pinrecon.io.bvh import load_bvh
 from pinrecon.problem import Weights
 from pinrecon.rows.posture import rest_directions
 
-#: COCO-17 body points -> the joints of the two CMU BVH releases (motionbuilder, 3ds Max)
+#: COCO-17 body points -> the joints of three CMU BVH releases (motionbuilder, 3ds Max, Daz)
 NAMES = {
     "mb": {"left_shoulder": "LeftArm", "right_shoulder": "RightArm", "left_elbow": "LeftForeArm",
            "right_elbow": "RightForeArm", "left_wrist": "LeftHand", "right_wrist": "RightHand",
@@ -55,6 +56,10 @@ NAMES = {
             "right_elbow": "RightElbow", "left_wrist": "LeftWrist", "right_wrist": "RightWrist",
             "left_hip": "LeftHip", "right_hip": "RightHip", "left_knee": "LeftKnee", "right_knee": "RightKnee",
             "left_ankle": "LeftAnkle", "right_ankle": "RightAnkle"},
+    "daz": {"left_shoulder": "lShldr", "right_shoulder": "rShldr", "left_elbow": "lForeArm",
+            "right_elbow": "rForeArm", "left_wrist": "lHand", "right_wrist": "rHand",
+            "left_hip": "lThigh", "right_hip": "rThigh", "left_knee": "lShin", "right_knee": "rShin",
+            "left_ankle": "lFoot", "right_ankle": "rFoot"},
 }
 
 
