@@ -109,6 +109,8 @@ def test_fit_tool_bvh_mode_against_the_text(tmp_path):
         if name in data["rest_directions"]:
             assert np.allclose(data["rest_directions"][name], off / np.linalg.norm(off), atol=2e-4), name
     assert data["rest_direction_spread_deg"] == 0.0  # one clip
+    assert data["made_with"]["pinrecon"].startswith(f"pinrecon {pr.__version__}")
+    assert data["made_with"]["numpy"] == np.__version__ and data["made_with"]["components"] == 1
 
 
 def test_fit_tool_reads_the_daz_release(tmp_path):

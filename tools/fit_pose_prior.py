@@ -34,6 +34,7 @@ The clips used for the bundled priors, and why these: ``models/priors/README.md`
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import json
 import re
 import warnings
@@ -95,6 +96,24 @@ def clip_channels(path, fps_out=30.0):
         m = load_bvh(path, 0.056444, skip_frames=1)
     step = max(1, round(m.fps / fps_out))
     return m.figure, m.q[::step], rest_directions(m.figure)
+
+
+def made_with(a):
+    """What a prior file was made with: the fitted joint angles come from this pinrecon's
+    ``reconstruct_markers`` and a mixture from scikit-learn's random start, so the same
+    clips give another file under another commit or version (bench/README.md, "The
+    prior's own draw")."""
+    bench = Path(__file__).resolve().parents[1] / "bench"
+    spec = importlib.util.spec_from_file_location("provenance", bench / "provenance.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    out = {"pinrecon": mod.provenance(), "numpy": np.__version__, "components": a.components, "shrink": a.shrink,
+           "max_frames": a.max_frames}
+    if a.components > 1:
+        import sklearn
+
+        out |= {"scikit-learn": sklearn.__version__, "random_state": a.seed}
+    return out
 
 
 def shrunk(C, shrink):
@@ -184,7 +203,7 @@ def main(argv=None):
     out = {"figure": "BVH, CMU motionbuilder layout" if bvh_mode else "Figure.human()", "units": "rad", "joints": joints,
            "correlated": corr,
            "clips": clips, "frames": len(Q), "min_std_rad": a.min_std, "skipped": a.skip,
-           "made_by": "tools/fit_pose_prior.py" + (" --figure bvh" if bvh_mode else "")}
+           "made_by": "tools/fit_pose_prior.py" + (" --figure bvh" if bvh_mode else ""), "made_with": made_with(a)}
     if bvh_mode:
         mean_dir = {n: np.mean([d[n] for d in dirs], axis=0) for n in dirs[0]}
         out["rest_directions"] = {n: [round(float(x), 4) for x in v / np.linalg.norm(v)] for n, v in mean_dir.items()}
