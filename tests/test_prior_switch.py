@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 import pinrecon as pr
+from pinrecon import unfamiliar
 from pinrecon.problem import Weights
 from pinrecon.reconstruct import build_problem
 from pinrecon.rows.posture import PosePrior
@@ -24,7 +25,7 @@ from pinrecon.synthetic import (
     smooth_motion,
 )
 from pinrecon.tracks import keyframes_from_points
-from pinrecon.unfamiliar import SWITCH_SHARE, broader_prior
+from pinrecon.unfamiliar import SWITCH_SHARE, SWITCH_SHARE_MONOCULAR, broader_prior, switch_share
 
 NAMES = list(COCO_BODY_FROM_CMU)
 
@@ -43,6 +44,11 @@ def test_the_rule():
     assert broader_prior("human_pose_mixture", "auto", _extras(0.9)) is None  # nothing broader
     assert broader_prior(None, "auto", _extras(0.9)) is None  # no learned prior (other figures)
     assert broader_prior("human_pose", "auto", {}) is None  # no check was run
+    # one camera without keyframes: a fifth; keyframes or a second camera: the half
+    assert SWITCH_SHARE_MONOCULAR == 0.2
+    assert switch_share(False, False) == 0.2 and switch_share(True, False) == switch_share(False, True) == 0.5
+    assert broader_prior("human_pose", "auto", _extras(0.21), share=0.2) == ("human_pose_mixture", pytest.approx(0.21))
+    assert broader_prior("human_pose", "auto", _extras(0.20), share=0.2) is None
 
 
 @pytest.fixture(scope="module")
@@ -96,6 +102,20 @@ def test_unknown_poses_are_solved_again_with_the_broader_prior(random_motion, tm
     # a warm start keeps the prior it is given
     warm = _solve(fig, tracks, cam, keys, init=named.q, options=pr.SolverOptions(max_iterations=2))
     assert "prior_model" not in warm.extras
+
+
+def test_without_keyframes_the_monocular_share_decides(random_motion, monkeypatch):
+    """reconstruct asks for the share that fits its inputs: with one camera and no keyframes
+    SWITCH_SHARE_MONOCULAR, with keyframes SWITCH_SHARE (each set here past the clip's share,
+    1.0, so that only the one consulted can stop the switch)."""
+    fig, tracks, cam, keys = random_motion
+    monkeypatch.setattr(unfamiliar, "SWITCH_SHARE_MONOCULAR", 1.0)
+    assert "prior_model" not in _solve(fig, tracks, cam, None).extras
+    monkeypatch.setattr(unfamiliar, "SWITCH_SHARE_MONOCULAR", 0.0)
+    monkeypatch.setattr(unfamiliar, "SWITCH_SHARE", 1.0)
+    res = _solve(fig, tracks, cam, None)
+    assert str(res.extras["prior_model"]) == "human_pose_mixture"
+    assert "prior_model" not in _solve(fig, tracks, cam, keys).extras
 
 
 def test_a_walk_the_default_knows_keeps_it():

@@ -53,7 +53,14 @@ from .starts.camera_auto import (
 from .starts.mirrors import mirror_stage
 from .starts.turns import turn_stage
 from .tracks import Keyframe, Keyframes, Markers, Tracks
-from .unfamiliar import BROADER_PRIOR, SWITCH_SHARE, broader_prior, switch_extras, unfamiliar_poses
+from .unfamiliar import (
+    BROADER_PRIOR,
+    SWITCH_SHARE,
+    broader_prior,
+    switch_extras,
+    switch_share,
+    unfamiliar_poses,
+)
 from .windowed import solve_windowed, windowed_length
 
 __all__ = [
@@ -271,7 +278,8 @@ def reconstruct(
     weights : :class:`~pinrecon.problem.Weights`. With the generic human's pose prior chosen by
         default (``pose_prior_model="auto"``) and a cold start, a clip whose poses that prior
         does not know (more than half of the main solve's frames, before the turn, fault and
-        feet stages; :mod:`pinrecon.unfamiliar`) is solved again from its start with the
+        feet stages, or a fifth with one camera and no keyframes: :func:`pinrecon.unfamiliar.
+        switch_share`) is solved again from its start with the
         broader ``human_pose_mixture`` (:func:`pinrecon.unfamiliar.broader_prior`; the first
         solve's warnings are dropped), and only that solve goes on through the stages; the
         result says so (``extras["prior_model"]``, its summary). A clip solved in windows
@@ -349,12 +357,13 @@ def reconstruct(
         mode = "camera" if auto is not None else "none"
         problem = make_problem(**inputs, calibrate=mode)
     start = _start_name(init, seed)
+    limit = switch_share(bool(keyframes), _several_views(tracks))  # the unfamiliar share that switches
     if span:  # a long clip: windows in bounded memory (the fault stage runs in each)
         if floor is not None or contact is not None:
             raise InputError("the feet stage (floor, contact) needs one batch solve: pass window=0", field="window")
         result = _package(problem, solve_windowed(problem, start, options, callback, window=span,
                                                   mirrors=_mirrors(problem, init)), auto, identify=False)
-        switch = None if default is None else broader_prior(default, "auto", result.extras)
+        switch = None if default is None else broader_prior(default, "auto", result.extras, share=limit)
         if switch is None:
             return result
         problem = make_problem(**{**inputs, "weights": replace(weights, pose_prior_model=switch[0])}, calibrate=mode)
@@ -376,7 +385,7 @@ def reconstruct(
     switch = None
     if default is not None:  # decided on the main solve, before the stages that polish it
         unfamiliar = unfamiliar_poses(problem, problem.figure.normalize(res.x))
-        switch = None if unfamiliar is None else broader_prior(default, "auto", unfamiliar.to_extras())
+        switch = None if unfamiliar is None else broader_prior(default, "auto", unfamiliar.to_extras(), share=limit)
         if switch is None:
             for c in caught:
                 warnings.warn_explicit(c.message, c.category, c.filename, c.lineno, source=c.source)

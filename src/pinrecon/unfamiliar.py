@@ -22,7 +22,8 @@ carries ``prior_distance`` (per frame), ``prior_distance_limit`` and
 ``prior_unfamiliar_spans`` ((n, 2) [start, stop) reconstruction frames), and the summary
 names the spans.
 
-When more than half of a clip's frames are unfamiliar and the prior was the default's, the
+When more than half of a clip's frames are unfamiliar and the prior was the default's (more
+than a fifth when one camera and no keyframe decide the depths, :func:`switch_share`), the
 clip is solved again with a broader one (:func:`broader_prior`: the generic human's single
 Gaussian -> its mixture of 8 Gaussians over 57 clips, ``models/priors/README.md``), and the
 result says so (``prior_model``, ``prior_default_unfamiliar``). On bench_real's dance the
@@ -41,7 +42,8 @@ import numpy as np
 
 from .rows.posture import PosePrior, posture_row
 
-__all__ = ["BROADER_PRIOR", "SWITCH_SHARE", "UnfamiliarPoses", "broader_prior", "switch_extras", "unfamiliar_poses"]
+__all__ = ["BROADER_PRIOR", "SWITCH_SHARE", "SWITCH_SHARE_MONOCULAR", "UnfamiliarPoses", "broader_prior",
+           "switch_extras", "switch_share", "unfamiliar_poses"]
 
 #: the broader prior a clip is solved again with when its default prior does not know most of
 #: its poses: the generic human's single Gaussian (walking, running, jumping, basketball; sharp
@@ -50,6 +52,13 @@ BROADER_PRIOR = {"human_pose": "human_pose_mixture"}
 #: the share of a clip's frames beyond the default prior's limit past which it is solved again
 #: with the broader prior (the share that also doubts an auto camera's focal length)
 SWITCH_SHARE = 0.5
+#: the same share for one camera without keyframes, where nothing but the pose prior ranks a
+#: limb's two depth reflections. Measured on dances the mixture was not fitted to (bench/README.md,
+#: "A lower switch without keyframes"): CMU 05_02 (30-35 % unfamiliar) and salsa 60_01, 60_05 and
+#: 61_01 (22-37 %) flip fewer limb segments with the mixture in every case without keyframes, and
+#: as many or more with first and last keyframes, where the half stays. The walk and the run (0 %)
+#: are untouched; the prior's own clips lie beyond its 99th percentile in 1 % of their frames.
+SWITCH_SHARE_MONOCULAR = 0.2
 
 
 @dataclass
@@ -108,17 +117,25 @@ def unfamiliar_poses(problem, Q, *, quantile: str = "99", merge_s: float = 0.2,
     return UnfamiliarPoses(d, float(limit), spans, model)
 
 
-def broader_prior(used: str | None, model: str, extras: dict) -> tuple[str, float] | None:
+def switch_share(keyframes: bool, several_views: bool) -> float:
+    """The share of unfamiliar frames past which :func:`broader_prior` switches: :data:`SWITCH_SHARE`
+    when 3D keyframes or several cameras also decide the limbs' depths, else
+    :data:`SWITCH_SHARE_MONOCULAR`."""
+    return SWITCH_SHARE if keyframes or several_views else SWITCH_SHARE_MONOCULAR
+
+
+def broader_prior(used: str | None, model: str, extras: dict, *, share: float = SWITCH_SHARE
+                  ) -> tuple[str, float] | None:
     """``(name, share)``: the broader prior (:data:`BROADER_PRIOR`) to solve a clip again with,
     when its pose prior was chosen by default (``model`` ``"auto"``), ``used`` has a broader
-    one, and more than :data:`SWITCH_SHARE` of the frames of the result (``extras``, with
-    :meth:`UnfamiliarPoses.to_extras`) lie beyond its limit; else None. The bundled dance
+    one, and more than ``share`` (:func:`switch_share`) of the frames of the result
+    (``extras``, with :meth:`UnfamiliarPoses.to_extras`) lie beyond its limit; else None. The bundled dance
     (bench_real, 05_11) is 79-90 % unfamiliar under the default and the walk and the run 0 %."""
     if model != "auto" or used not in BROADER_PRIOR or "prior_distance" not in extras:
         return None
     d = np.asarray(extras["prior_distance"], float)
-    share = float(np.mean(d > float(extras["prior_distance_limit"]))) if len(d) else 0.0
-    return (BROADER_PRIOR[used], share) if share > SWITCH_SHARE else None
+    found = float(np.mean(d > float(extras["prior_distance_limit"]))) if len(d) else 0.0
+    return (BROADER_PRIOR[used], found) if found > share else None
 
 
 def switch_extras(name: str, share: float) -> dict:

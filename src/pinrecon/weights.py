@@ -50,7 +50,8 @@ class Weights:
         a prior in ``models/priors`` (``"human_pose"``: the human's default, one Gaussian, kept
         whatever the clip; ``"human_pose_mixture"``: a mixture of 8 Gaussians over 57 clips,
         which ``"auto"`` solves a clip again with when the default does not know more than half
-        of its poses, :func:`pinrecon.unfamiliar.broader_prior`; ``"cmu_bvh_pose"``: CMU BVH
+        of its poses (a fifth with one camera and no keyframes), :func:`pinrecon.unfamiliar.
+        broader_prior`; ``"cmu_bvh_pose"``: CMU BVH
         figures) or a JSON file of ``tools/fit_pose_prior.py``; one that does not fit is refused
         (``rows.posture.prior_for``).
     pose_prior_loss, pose_prior_k : robust loss on a frame's Mahalanobis distance, quadratic up
