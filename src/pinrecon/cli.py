@@ -552,8 +552,9 @@ def add_pose_prior_argument(parser) -> None:
     parser.add_argument("--pose-prior-model", default=argparse.SUPPRESS, metavar="NAME|FILE",
                         help="which learned pose prior: auto (the default: the generic human's for --figure human, "
                         "solved again with its broader mixture when it does not know more than half of the "
-                        "poses, a fifth with one camera and no keyframes; none for other figures), none, a bundled one (human_pose: the human's, kept "
-                        "whatever the clip; human_pose_mixture: its mixture of Gaussians over more clips; "
+                        "poses, a fifth with one camera and no keyframes; none for other figures), none, a "
+                        "bundled one (human_pose: the human's, kept whatever the clip; human_pose_mixture: its "
+                        "mixture of Gaussians over more clips; "
                         "cmu_bvh_pose: a figure made from a CMU BVH file, for detector tracks) or a JSON file "
                         "made by tools/fit_pose_prior.py")
 

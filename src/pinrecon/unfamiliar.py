@@ -55,8 +55,8 @@ SWITCH_SHARE = 0.5
 #: the same share for one camera without keyframes, where nothing but the pose prior ranks a
 #: limb's two depth reflections. Measured on dances the mixture was not fitted to (bench/README.md,
 #: "A lower switch without keyframes"): CMU 05_02 (30-35 % unfamiliar) and salsa 60_01, 60_05 and
-#: 61_01 (22-37 %) flip fewer limb segments with the mixture in every case without keyframes, and
-#: as many or more with first and last keyframes, where the half stays. The walk and the run (0 %)
+#: 61_01 (22-38 % at the main solve) flip fewer limb segments with the mixture in every case
+#: without keyframes; with first and last keyframes it is further in five of six, so the half stays. The walk and the run (0 %)
 #: are untouched; the prior's own clips lie beyond its 99th percentile in 1 % of their frames.
 SWITCH_SHARE_MONOCULAR = 0.2
 
@@ -129,8 +129,9 @@ def broader_prior(used: str | None, model: str, extras: dict, *, share: float = 
     """``(name, share)``: the broader prior (:data:`BROADER_PRIOR`) to solve a clip again with,
     when its pose prior was chosen by default (``model`` ``"auto"``), ``used`` has a broader
     one, and more than ``share`` (:func:`switch_share`) of the frames of the result
-    (``extras``, with :meth:`UnfamiliarPoses.to_extras`) lie beyond its limit; else None. The bundled dance
-    (bench_real, 05_11) is 79-90 % unfamiliar under the default and the walk and the run 0 %."""
+    (``extras``, with :meth:`UnfamiliarPoses.to_extras`) lie beyond its limit; else None. The
+    bundled dance (bench_real, 05_11) is 79-90 % unfamiliar under the default and the walk and
+    the run 0 %."""
     if model != "auto" or used not in BROADER_PRIOR or "prior_distance" not in extras:
         return None
     d = np.asarray(extras["prior_distance"], float)
