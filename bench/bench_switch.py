@@ -33,13 +33,11 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent / "tools"))
 
-from bench_real import score  # bench/ is the script's folder
+from bench_real import score, tracked_case  # bench/ is the script's folder
 from fit_pose_prior import NAMES  # the CMU releases' joint names
 
 import pinrecon as pr
 from pinrecon.io.bvh import load_bvh
-from pinrecon.synthetic import detector_faults, perspective_side_camera
-from pinrecon.tracks import keyframes_from_points
 
 
 def release(figure) -> dict:
@@ -49,22 +47,6 @@ def release(figure) -> dict:
         if set(table.values()) <= have:
             return table
     raise SystemExit(f"none of the CMU releases' joint names ({', '.join(NAMES)}) are all in this file")
-
-
-def case(path, scale, frames, azimuth, keyframes, seed):
-    m = load_bvh(path, scale, skip_frames=1, lock="static")
-    step = max(1, round(m.fps / 30.0))
-    q, fps = m.q[::step][:frames], m.fps / step
-    table = release(m.figure)
-    coco = list(table)
-    P = m.figure.keypoints(q)[:, m.figure.keypoint_index([table[n] for n in coco])]
-    cam = perspective_side_camera(q, azimuth)
-    tracks, _ = detector_faults(pr.Tracks(cam.project(P), coco, fps), seed=seed)
-    keys = None
-    if keyframes == "first+last":
-        rng = np.random.default_rng(seed + 7)
-        keys = keyframes_from_points([0, len(q) - 1], P + rng.normal(0.0, 0.05, P.shape), coco, 0.05)
-    return tracks, cam, keys, P
 
 
 def main(argv=None):
@@ -84,9 +66,12 @@ def main(argv=None):
     print("\n| clip | keyframes | angle | prior | PA-MPJPE (mm) | flips (%) | frames unfamiliar to the default (%) | "
           "switched | time (s) |\n|---|---|---:|---|---:|---:|---:|---|---:|", flush=True)
     for path in a.bvh:
+        m = load_bvh(path, a.scale, skip_frames=1, lock="static")
+        step = max(1, round(m.fps / 30.0))
+        q, fps, joints = m.q[::step][: a.frames], m.fps / step, release(m.figure)
         for kf in a.keyframes:
             for az in a.angles:
-                tracks, cam, keys, P = case(path, a.scale, a.frames, az, kf, seed=int(az))
+                tracks, cam, keys, P, _ = tracked_case(m.figure, q, fps, az, kf, seed=int(az), joints=joints)
                 for prior in a.priors:
                     t0 = time.perf_counter()
                     with warnings.catch_warnings():

@@ -39,6 +39,8 @@ import numpy as np
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 REPO = Path(__file__).resolve().parents[1]
 
+import bench_real  # bench/ is the script's folder
+
 import pinrecon as pr
 from pinrecon.io.calibration import load_cameras
 from pinrecon.io.trc import load_trc
@@ -50,10 +52,7 @@ FOLDER = REPO / "examples" / "data" / "pose2sim_balancing"
 TRC = FOLDER / "S00_P00_T01_BalancingTrial_0-100.trc"
 CALIB = REPO / "tests" / "data" / "calibration" / "pose2sim" / "Calib_qualisys.toml"
 COCO12 = list(COCO_17[5:])  # the 12 body points: shoulders, elbows, wrists, hips, knees, ankles
-SEGMENTS = [(COCO12.index(a), COCO12.index(b)) for a, b in [
-    ("left_shoulder", "left_elbow"), ("left_elbow", "left_wrist"), ("right_shoulder", "right_elbow"),
-    ("right_elbow", "right_wrist"), ("left_hip", "left_knee"), ("left_knee", "left_ankle"),
-    ("right_hip", "right_knee"), ("right_knee", "right_ankle")]]
+SEGMENTS = [(COCO12.index(a), COCO12.index(b)) for a, b in bench_real.SEGMENTS]  # its flip metric's limbs
 
 
 def truth() -> np.ndarray:
@@ -99,7 +98,7 @@ def main(argv=None):
                 res = pr.reconstruct(fig, tr, camera, **kw)
             P = res.keypoints3d[:, res.figure.keypoint_index(COCO12)]
             if camera == "auto":  # its world is its fitted camera's: into camera 1's through the camera frame
-                P = (res.cameras[0].camera_points(P) - cam.t) @ cam.R
+                P = bench_real.in_true_world(P, res.cameras[0], cam)
             pa = pa_mpjpe(P, G)
             flips = 100.0 * flip_rate(P, G, cam, SEGMENTS)
             dz = mpjpe_depth_aligned(P, G, cam)
