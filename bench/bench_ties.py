@@ -24,6 +24,7 @@ spans to the prior.
 
     OPENBLAS_NUM_THREADS=1 python bench/bench_ties.py                          # walk, run, dance; 45 and 60 degrees
     python bench/bench_ties.py --clips spin --angles 60 --keyframes first+last --priors none --verbose
+    python bench/bench_ties.py --clips --real      # Pose2Sim's real balancing trial alone (bench_video_spread's)
 """
 
 from __future__ import annotations
@@ -59,9 +60,30 @@ def weights_for(prior: str) -> pr.Weights:
 
 
 def ties(clip: str, angle: float, keyframes: str, priors=PRIORS, verbose: bool = False) -> list[dict]:
-    """One detector case under each prior: the truth solved warm and its mirror candidates."""
+    """One of bench_real's detector cases under each prior: the truth solved warm and its mirror candidates."""
     tracks, cam, keys, P, _ = detector_case(clip, angle, keyframes, seed=int(angle))
-    names = list(tracks.names)
+    return solved_ties(tracks, cam, keys, P, list(tracks.names), (clip, f"{angle:g}", keyframes), priors, verbose)
+
+
+def real_ties(priors=PRIORS, verbose: bool = False) -> list[dict]:
+    """Pose2Sim's balancing trial (bench_video_spread's): camera 1's OpenPose points that are
+    COCO-17's, its calibration, no keyframe; the truth is Pose2Sim's triangulation of the 12
+    body points from all four cameras."""
+    from bench_video_spread import CALIB, COCO12, FOLDER, truth
+
+    from pinrecon.io.calibration import load_cameras
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        tracks = pr.load_tracks(FOLDER / "cam01_json", fps=60.0)
+    tracks = tracks.select([n for n in tracks.names if n in pr.Figure.human().keypoint_names])
+    cam = load_cameras(CALIB)[0].camera
+    return solved_ties(tracks, cam, None, truth(), COCO12, ("pose2sim", "camera 1", "none"), priors, verbose)
+
+
+def solved_ties(tracks, cam, keys, P, names, label, priors=PRIORS, verbose: bool = False) -> list[dict]:
+    """The generic human fitted to the true points ``P`` (T, K, 3) named ``names``, solved warm
+    on ``tracks`` through ``cam`` under each prior, and the mirror stage tried from there."""
     segs = [(names.index(a), names.index(b)) for a, b in SEGMENTS]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -99,7 +121,7 @@ def ties(clip: str, angle: float, keyframes: str, priors=PRIORS, verbose: bool =
                 if gain >= -margin:
                     union |= new
             share[margin] = 100.0 * union.sum() / max(n, 1)
-        out.append({"clip": clip, "angle": angle, "keyframes": keyframes, "prior": prior, "pa": s0["pa"],
+        out.append({"clip": label[0], "angle": label[1], "keyframes": label[2], "prior": prior, "pa": s0["pa"],
                     "flips": s0["flips"], "share": share, "candidates": len(found), "counted": n,
                     "time": time.perf_counter() - t0})
         print(_row(out[-1]), flush=True)
@@ -108,7 +130,7 @@ def ties(clip: str, angle: float, keyframes: str, priors=PRIORS, verbose: bool =
 
 def _row(r: dict) -> str:
     shares = " | ".join(f"{r['share'][m]:.1f}" for m in MARGINS)
-    return (f"| {r['clip']} | {r['angle']:g} | {r['keyframes']} | {r['prior']} | {r['pa']:.1f} / {r['flips']:.1f} | "
+    return (f"| {r['clip']} | {r['angle']} | {r['keyframes']} | {r['prior']} | {r['pa']:.1f} / {r['flips']:.1f} | "
             f"{shares} | {r['candidates']} | {r['time']:.0f} |")
 
 
@@ -120,6 +142,7 @@ def main(argv=None) -> None:
     ap.add_argument("--priors", nargs="*", default=list(PRIORS),
                     help="none, a bundled prior's name (models/priors) or a prior file (.json)")
     ap.add_argument("--verbose", action="store_true", help="every candidate")
+    ap.add_argument("--real", action="store_true", help="Pose2Sim's real balancing trial too (after the clips)")
     a = ap.parse_args(argv)
     from provenance import provenance
 
@@ -132,6 +155,8 @@ def main(argv=None) -> None:
         for kf in a.keyframes:
             for angle in a.angles:
                 ties(clip, angle, kf, a.priors, a.verbose)
+    if a.real:
+        real_ties(a.priors, a.verbose)
 
 
 if __name__ == "__main__":
