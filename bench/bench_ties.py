@@ -18,9 +18,9 @@ depth difference over 10 % of the length, as ``pinrecon.metrics.flipped_segments
 candidate flips while costing at most 0 / 10 / 30 nats more than the truth (0: the objective
 prefers the flipped span; 10: the mirror stage's own tie, a likelihood ratio of e^10).
 
-A share over the limit at 0 nats means no search can meet the limit under that objective:
-its minimum near the truth has more flips. A large share at 10 nats means the data leave those
-spans to the prior.
+When the truth solved warm is already over a flip limit, or over it once the spans flippable
+at 0 nats are added, no search can meet that limit under that objective: its minimum near the
+truth has more flips. A large share at 10 nats means the data leave those spans to the prior.
 
     OPENBLAS_NUM_THREADS=1 python bench/bench_ties.py                          # walk, run, dance; 45 and 60 degrees
     python bench/bench_ties.py --clips spin --angles 60 --keyframes first+last --priors none --verbose
