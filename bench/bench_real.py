@@ -56,6 +56,7 @@ from pinrecon.synthetic import (
     COCO_BODY_FROM_CMU,
     body_keypoints,
     bundled_motion,
+    coco_body_tracks,
     detector_faults,
     perspective_side_camera,
     point_keyframes,
@@ -134,16 +135,14 @@ def tracked_case(fig, q, fps, azimuth, keyframes, seed=0, joints=None):
     faults, point keyframes (5 cm) per ``keyframes``. Returns (tracks, camera, keyframes or
     None, true points (T, 12, 3), the faults' log)."""
     cam = perspective_side_camera(q, azimuth)
-    joints = joints or COCO_BODY_FROM_CMU
-    names = list(joints)
-    P = fig.keypoints(q)[:, fig.keypoint_index([joints[n] for n in names])]
-    tracks, log = detector_faults(pr.Tracks(cam.project(P), names, fps), seed=seed)
+    clean, P = coco_body_tracks(fig, q, cam, fps=fps, joints=joints)
+    tracks, log = detector_faults(clean, seed=seed)
     keys = None
     if keyframes == "first+last" or keyframes.isdigit():
         n = 2 if keyframes == "first+last" else int(keyframes)
         kf_frames = np.unique(np.round(np.linspace(0, len(q) - 1, n)).astype(int)).tolist()
         rng = np.random.default_rng(seed + 7)
-        keys = keyframes_from_points(kf_frames, P + rng.normal(0.0, 0.05, P.shape), names, 0.05)
+        keys = keyframes_from_points(kf_frames, P + rng.normal(0.0, 0.05, P.shape), clean.names, 0.05)
     return tracks, cam, keys, P, log
 
 

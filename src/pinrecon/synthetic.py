@@ -235,14 +235,18 @@ COCO_BODY_FROM_CMU = {
 }
 
 
-def coco_body_tracks(figure, Q, camera, *, fps: float, noise_px: float = 0.0, seed=0) -> tuple[Tracks, np.ndarray]:
+def coco_body_tracks(figure, Q, camera, *, fps: float, noise_px: float = 0.0, seed=0,
+                     joints: dict | None = None) -> tuple[Tracks, np.ndarray]:
     """A CMU clip's 12 body joints seen by ``camera`` as COCO-17 named tracks.
 
-    Returns the tracks (``noise_px`` Gaussian pixel noise, nothing missing) and the true
-    3D positions (T, 12, 3) of those joints in the tracks' order (the ground truth a
-    reconstruction with another figure, e.g. ``Figure.human()``, is scored against)."""
-    coco = list(COCO_BODY_FROM_CMU)
-    P = figure.keypoints(Q)[:, figure.keypoint_index([COCO_BODY_FROM_CMU[n] for n in coco])]
+    ``joints``: COCO name -> the figure's joint (default :data:`COCO_BODY_FROM_CMU`, the
+    motionbuilder release's names; another CMU release names them otherwise). Returns the
+    tracks (``noise_px`` Gaussian pixel noise, nothing missing) and the true 3D positions
+    (T, 12, 3) of those joints in the tracks' order (the ground truth a reconstruction with
+    another figure, e.g. ``Figure.human()``, is scored against)."""
+    joints = joints or COCO_BODY_FROM_CMU
+    coco = list(joints)
+    P = figure.keypoints(Q)[:, figure.keypoint_index([joints[n] for n in coco])]
     rng = np.random.default_rng(seed)
     uv = camera.project(P) + rng.normal(0.0, noise_px, P.shape[:2] + (2,))
     return Tracks(uv, coco, fps), P
