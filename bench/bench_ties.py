@@ -69,15 +69,10 @@ def real_ties(priors=PRIORS, verbose: bool = False) -> list[dict]:
     """Pose2Sim's balancing trial (bench_video_spread's): camera 1's OpenPose points that are
     COCO-17's, its calibration, no keyframe; the truth is Pose2Sim's triangulation of the 12
     body points from all four cameras."""
-    from bench_video_spread import CALIB, COCO12, FOLDER, truth
+    from bench_video_spread import COCO12, trial, truth
 
-    from pinrecon.io.calibration import load_cameras
-
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        tracks = pr.load_tracks(FOLDER / "cam01_json", fps=60.0)
+    tracks, cam = trial()
     tracks = tracks.select([n for n in tracks.names if n in pr.Figure.human().keypoint_names])
-    cam = load_cameras(CALIB)[0].camera
     return solved_ties(tracks, cam, None, truth(), COCO12, ("pose2sim", "camera 1", "none"), priors, verbose)
 
 

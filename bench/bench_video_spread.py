@@ -62,20 +62,28 @@ def truth() -> np.ndarray:
     return m.points[:, [m.names.index(n) for n in COCO12]]
 
 
+def trial():
+    """Camera 1's OpenPose tracks of the trial (BODY_25B names, 60 fps) and Pose2Sim's
+    calibration of camera 1."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        tracks = pr.load_tracks(FOLDER / "cam01_json", fps=60.0)
+    return tracks, load_cameras(CALIB)[0].camera
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--seeds", type=int, default=5, help="perturbed copies per setting (seed 0, the trial as it is, "
                     "is always run too)")
     ap.add_argument("--drop", type=float, default=0.01, help="share of the observed detections removed per copy")
     a = ap.parse_args(argv)
+    if a.seeds < 1:  # the summary compares the trial as it is with its perturbed copies
+        ap.error(f"--seeds must be at least 1, got {a.seeds}")
     from provenance import provenance
 
     print(provenance())
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        tracks = pr.load_tracks(FOLDER / "cam01_json", fps=60.0)
+    tracks, cam = trial()
     G = truth()
-    cam = load_cameras(CALIB)[0].camera
     b25b = pr.Figure.human("auto", tracks=tracks)
     coco = pr.Figure.human()
     settings = {
