@@ -27,12 +27,11 @@ def model_path(*parts: str) -> Path:
 
 
 def bundled_clip(name: str = "walk") -> Path:
-    """Path of a bundled CMU clip: 'walk' (02_01), 'run' (09_01), 'spin' (05_11), or a file name."""
-    files = {"walk": "cmu-mb_02_01.bvh", "run": "cmu-mb_09_01.bvh", "spin": "cmu-mb_05_11.bvh"}
-    path = model_path("mocap", files.get(name, name))
-    if not path.is_file():
-        raise InputError(f"no bundled clip '{name}'; choose one of {sorted(files)}", field="clip")
-    return path
+    """Path of a CMU clip: 'walk' (02_01), 'run' (09_01), 'spin' (05_11), 'dance' (05_02), or a
+    registered dataset name; fetched through :mod:`pinrecon.datasets`."""
+    from .datasets import clip
+
+    return clip(name)
 
 
 @lru_cache(maxsize=None)
