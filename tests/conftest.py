@@ -45,6 +45,17 @@ def data_folder(prefix: str) -> Path:
         pytest.skip(str(exc))
 
 
+WALK_BVH = Path("mocap/cmu-mb_02_01.bvh")  # replaced below where the data can be had
+MIXED_BVH = Path("project-test-data/cmu-max_131_03.bvh")
+try:
+    from pinrecon import datasets as _datasets
+
+    WALK_BVH = _datasets.fetch(str(WALK_BVH), progressbar=False)
+    MIXED_BVH = _datasets.fetch(str(MIXED_BVH), progressbar=False)
+except Exception:  # noqa: BLE001 - reported by the tests that read them (data_file)
+    pass
+
+
 @pytest.fixture(scope="session")
 def human():
     from pinrecon import Figure

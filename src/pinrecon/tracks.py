@@ -29,6 +29,7 @@ from .io.openpose_json import read_openpose
 from .io.people import MAX_COORD
 from .io.track_arrays import TrackArrays, TracksWarning
 from .io.tracks_json import read_tracks_json, read_tracks_npz, write_tracks
+from .lifted import Lifted
 
 __all__ = [
     "Tracks",
@@ -67,6 +68,7 @@ class Tracks:
     confidence : optional (T, K) weights in [0, 1] (detector scores); NaN counts as 0.
     source : file the tracks came from, for error messages.
     layout : the detector layout the points were read as (:mod:`pinrecon.layouts`), if any.
+    lifted : optional learned 3D cues of the same frames (:class:`pinrecon.lifted.Lifted`).
     """
 
     points: np.ndarray
@@ -75,6 +77,7 @@ class Tracks:
     confidence: np.ndarray | None = None
     source: str | None = None
     layout: str | None = None
+    lifted: Lifted | None = None
 
     def __post_init__(self):
         src = self.source
@@ -134,6 +137,14 @@ class Tracks:
             neg = np.argwhere(conf < 0)
             if neg.size:
                 raise InputError("confidence must be >= 0", file=src, field="confidence", frame=int(neg[0, 0]))
+        if self.lifted is not None:
+            if not isinstance(self.lifted, Lifted):
+                raise InputError("must be a pinrecon.lifted.Lifted", file=src, field="lifted")
+            if self.lifted.T != pts.shape[0]:
+                raise InputError(
+                    f"{self.lifted.T} frames of lifted 3D for {pts.shape[0]} frames of tracks",
+                    file=self.lifted.source or src, field="lifted",
+                )
         self.points, self.names, self.fps, self.confidence = pts, names, float(self.fps), conf
 
     @classmethod
@@ -183,13 +194,15 @@ class Tracks:
             raise UnknownNameError("track", unknown, self.names, file=self.source, field="names")
         idx = [index[n] for n in names]
         conf = None if self.confidence is None else self.confidence[:, idx]
-        return Tracks(self.points[:, idx], list(names), self.fps, conf, self.source, self.layout)
+        lifted = None if self.lifted is None else self.lifted.select(names)
+        return Tracks(self.points[:, idx], list(names), self.fps, conf, self.source, self.layout, lifted)
 
     def frames(self, start: int = 0, stop: int | None = None, step: int = 1) -> Tracks:
         """A frame range (``step`` > 1 subsamples and divides fps)."""
         sl = slice(start, stop, step)
         conf = None if self.confidence is None else self.confidence[sl]
-        return Tracks(self.points[sl], self.names, self.fps / step, conf, self.source, self.layout)
+        lifted = None if self.lifted is None else self.lifted.frames(start, stop, step)
+        return Tracks(self.points[sl], self.names, self.fps / step, conf, self.source, self.layout, lifted)
 
     def __repr__(self):
         miss = 1.0 - self.observed.mean() if self.T and self.K else 0.0

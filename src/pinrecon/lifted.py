@@ -1,0 +1,113 @@
+"""Learned 3D cues: a lifter's per-frame 3D estimate of the tracked points.
+
+A lifter (MediaPipe's world landmarks, MotionBERT, VideoPose3D, MMPose's 3D inferencer, or
+pinrecon's own) gives, per frame, 3D positions of named points. Their scale and translation are
+unreliable and their axes are the lifter's own, so :class:`Lifted` carries only what the MAP can
+use as a prior on the figure's shape: directions between points, per frame, with a confidence.
+
+``frame`` says how the lifter's axes relate to the camera whose image was lifted:
+
+* ``"camera"``: the camera's own axes (x right, y down, z forward, as OpenCV), up to scale and
+  translation; the rotation to the camera is the identity.
+* ``"unknown"``: some fixed axes of the lifter's (MediaPipe's world landmarks: hips-centred,
+  y down, but not aligned with the camera), one rotation for the whole clip, estimated.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import InputError
+
+__all__ = ["Lifted", "LIFTED_FRAMES"]
+
+LIFTED_FRAMES = ("camera", "unknown")
+
+
+@dataclass(eq=False)
+class Lifted:
+    """3D positions of K named points over T frames from a learned lifter.
+
+    Attributes
+    ----------
+    points : (T, K, 3) positions in the lifter's units and axes, NaN where missing.
+    names : K point names (the same vocabulary as :class:`pinrecon.Tracks` names).
+    confidence : (T, K) in [0, 1] (the lifter's visibility or certainty), 0 where missing.
+    frame : ``"camera"`` or ``"unknown"`` (see the module's docstring).
+    source : what produced them (``"mediapipe"``, ``"motionbert"``, a file name ...).
+    camera : index of the camera whose image they were lifted from (several-camera solves).
+    """
+
+    points: np.ndarray
+    names: list[str]
+    confidence: np.ndarray | None = None
+    frame: str = "unknown"
+    source: str | None = None
+    camera: int = 0
+
+    def __post_init__(self):
+        src = self.source
+        try:
+            pts = np.array(self.points, dtype=float)
+        except (TypeError, ValueError, OverflowError):
+            raise InputError("must be numeric (T, K, 3)", file=src, field="lifted") from None
+        if pts.ndim != 3 or pts.shape[2] != 3:
+            raise InputError(f"expected shape (T, K, 3), got {pts.shape}", file=src, field="lifted")
+        names = [str(n) for n in self.names]
+        if len(names) != pts.shape[1]:
+            raise InputError(f"{len(names)} names but {pts.shape[1]} points", file=src, field="lifted names")
+        if len(set(names)) != len(names):
+            raise InputError("duplicate names", file=src, field="lifted names")
+        bad = ~np.all(np.isfinite(pts), axis=2)
+        pts[bad] = np.nan
+        huge = np.argwhere(np.abs(np.where(bad[..., None], 0.0, pts)) > 1e6)
+        if huge.size:
+            raise InputError("coordinates beyond +-1e6 are no positions", file=src, field="lifted",
+                             frame=int(huge[0, 0]))
+        if self.confidence is None:
+            conf = np.ones(pts.shape[:2])
+        else:
+            try:
+                conf = np.array(self.confidence, dtype=float)
+            except (TypeError, ValueError, OverflowError):
+                raise InputError("must be numeric (T, K)", file=src, field="lifted confidence") from None
+            if conf.shape != pts.shape[:2]:
+                raise InputError(f"expected shape {pts.shape[:2]}, got {conf.shape}", file=src,
+                                 field="lifted confidence")
+            conf = np.clip(np.where(np.isfinite(conf), conf, 0.0), 0.0, 1.0)
+        conf[bad] = 0.0
+        if self.frame not in LIFTED_FRAMES:
+            raise InputError(f"frame must be one of {LIFTED_FRAMES}, got {self.frame!r}", file=src,
+                             field="lifted frame")
+        self.points, self.names, self.confidence = pts, names, conf
+        self.camera = int(self.camera)
+
+    @property
+    def T(self) -> int:
+        return self.points.shape[0]
+
+    @property
+    def K(self) -> int:
+        return self.points.shape[1]
+
+    def select(self, names: Sequence[str]) -> Lifted:
+        """The named points only, in that order (names it lacks are missing: NaN, confidence 0)."""
+        index = {n: i for i, n in enumerate(self.names)}
+        pts = np.full((self.T, len(names), 3), np.nan)
+        conf = np.zeros((self.T, len(names)))
+        for j, n in enumerate(names):
+            if n in index:
+                pts[:, j] = self.points[:, index[n]]
+                conf[:, j] = self.confidence[:, index[n]]
+        return Lifted(pts, list(names), conf, self.frame, self.source, self.camera)
+
+    def frames(self, start: int = 0, stop: int | None = None, step: int = 1) -> Lifted:
+        """A frame range, as :meth:`pinrecon.Tracks.frames`."""
+        sl = slice(start, stop, step)
+        return Lifted(self.points[sl], self.names, self.confidence[sl], self.frame, self.source, self.camera)
+
+    def __repr__(self):
+        return f"Lifted({self.T} frames x {self.K} points, frame={self.frame!r}, source={self.source!r})"
