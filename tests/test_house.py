@@ -152,7 +152,7 @@ LAYERS = [
     ("pipeline", ["pinrecon.reconstruct", "pinrecon.synthetic", "pinrecon.faults", "pinrecon.metrics",
                   "pinrecon.windowed", "pinrecon.unfamiliar", "pinrecon.stability"]),
     ("exports and pictures", ["pinrecon.io.bvh_export", "pinrecon.io.csv_export", "pinrecon.viz"]),
-    ("applications", ["pinrecon.cli", "pinrecon.demo", "pinrecon.workbench", "pinrecon"]),
+    ("applications", ["pinrecon.cli", "pinrecon.commands", "pinrecon.demo", "pinrecon.workbench", "pinrecon"]),
 ]
 
 

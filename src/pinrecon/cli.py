@@ -358,6 +358,9 @@ def build_parser() -> argparse.ArgumentParser:
         description="Reconstruct 3D figure motion from 2D joint tracks seen by one or more cameras.",
     )
     sub = p.add_subparsers(dest="command", required=True)
+    from .commands import register_all
+
+    register_all(sub)
 
     r = sub.add_parser("reconstruct", help="batch-reconstruct a motion from 2D tracks")
     r.add_argument("--figure", required=True, help="'human', a URDF file, or a BVH file (its skeleton)")
