@@ -371,7 +371,9 @@ def _dance_inputs(folder):
     from pinrecon.io.bvh import load_bvh
     from pinrecon.synthetic import body_keypoints, point_keyframes, project_tracks, side_camera
 
-    bvh = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "models", "mocap", "cmu-mb_05_02.bvh")
+    from pinrecon import datasets
+
+    bvh = datasets.clip("dance")
     m = load_bvh(bvh, 0.056444, skip_frames=1)
     fig, q, fps = m.figure, m.q, m.fps
     names = body_keypoints(fig)

@@ -23,7 +23,7 @@ root (mid-hip) trajectory error after that offset, plain MPJPE; the mean over th
 angles, and the worst angle's flips.
 
 The lab case: the clip's own skeleton (with the CMU ASF joint limits read onto it,
-``tests/data/cmu-asf_01.asf``), an orthographic camera 45 degrees from side-on, its 22
+``project-test-data/cmu-asf_01.asf`` through pinrecon.datasets), an orthographic camera 45 degrees from side-on, its 22
 body joints with 1 px noise, 3D keyframes (2 cm) on the first and last frame.
 
     OPENBLAS_NUM_THREADS=1 python bench/bench_real.py            # everything (about 30 min on one core)
@@ -49,6 +49,7 @@ import numpy as np
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import pinrecon as pr
+from pinrecon import datasets
 from pinrecon import metrics
 from pinrecon.result import uncertain_limb_spans
 from pinrecon.stability import drop_detections
@@ -65,7 +66,7 @@ from pinrecon.synthetic import (
 )
 from pinrecon.tracks import keyframes_from_points
 
-ASF = Path(__file__).resolve().parents[1] / "tests" / "data" / "cmu-asf_01.asf"
+ASF = datasets.fetch("project-test-data/cmu-asf_01.asf")
 SEGMENTS = [("left_shoulder", "left_elbow"), ("left_elbow", "left_wrist"), ("right_shoulder", "right_elbow"),
             ("right_elbow", "right_wrist"), ("left_hip", "left_knee"), ("left_knee", "left_ankle"),
             ("right_hip", "right_knee"), ("right_knee", "right_ankle")]

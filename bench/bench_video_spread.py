@@ -1,7 +1,7 @@
 """How far one number on real footage can be trusted: Pose2Sim's balancing trial, perturbed.
 
 The README quotes one PA-MPJPE per setting for Pose2Sim's real balancing trial (camera 1,
-OpenPose BODY_25B, 100 frames at 60 fps, ``examples/data/pose2sim_balancing``), scored
+OpenPose BODY_25B, 100 frames at 60 fps, ``pose2sim-balancing`` through pinrecon.datasets), scored
 against Pose2Sim's own triangulation from all four calibrated cameras. A monocular solve
 of motion the pose prior does not know can land in different basins after small changes of
 its input, so this runs each setting on the trial as it is and on copies with a small share
@@ -42,15 +42,16 @@ REPO = Path(__file__).resolve().parents[1]
 import bench_real  # bench/ is the script's folder
 
 import pinrecon as pr
+from pinrecon import datasets
 from pinrecon.io.calibration import load_cameras
 from pinrecon.io.trc import load_trc
 from pinrecon.layouts import COCO_17
 from pinrecon.metrics import flip_rate, mpjpe_depth_aligned, pa_mpjpe
 from pinrecon.stability import drop_detections
 
-FOLDER = REPO / "examples" / "data" / "pose2sim_balancing"
-TRC = FOLDER / "S00_P00_T01_BalancingTrial_0-100.trc"
-CALIB = REPO / "tests" / "data" / "calibration" / "pose2sim" / "Calib_qualisys.toml"
+TRACKS = datasets.folder("pose2sim-balancing/pose/cam01_json")
+TRC = datasets.fetch("pose2sim-balancing/pose-3d/S00_P00_T01_BalancingTrial_0-100.trc")
+CALIB = datasets.fetch("pose2sim-balancing/calibration/Calib_qualisys.toml")
 COCO12 = list(COCO_17[5:])  # the 12 body points: shoulders, elbows, wrists, hips, knees, ankles
 SEGMENTS = [(COCO12.index(a), COCO12.index(b)) for a, b in bench_real.SEGMENTS]  # its flip metric's limbs
 
@@ -67,7 +68,7 @@ def trial():
     calibration of camera 1."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        tracks = pr.load_tracks(FOLDER / "cam01_json", fps=60.0)
+        tracks = pr.load_tracks(TRACKS, fps=60.0)
     return tracks, load_cameras(CALIB)[0].camera
 
 

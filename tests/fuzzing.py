@@ -29,8 +29,14 @@ import numpy as np
 
 from pinrecon.errors import PinreconError
 
-DATA = Path(__file__).resolve().parent / "data"
-DET = DATA / "detectors"
+
+
+def detectors_folder() -> Path:
+    """The real detector outputs the seeds mutate (pinrecon.datasets, project-test-data)."""
+    from pinrecon import datasets
+
+    return datasets.folder("project-test-data/detectors", progressbar=False)
+
 
 JUNK = [
     None, True, False, 0, -1, 1, 0.5, 7, -1e308, 1e308, 10**400, -(10**400), 2**63, math.nan, math.inf,
@@ -71,6 +77,7 @@ def _json(path):
 def seeds() -> dict[str, tuple[str, object]]:
     """name -> (kind, content): ``json`` a document, ``folder`` {file name: document},
     ``npz`` a dict of arrays."""
+    DET = detectors_folder()
     multi = sorted((DET / "pose2sim_body25b_multi").glob("*.json"))[:3]
     halpe = sorted((DET / "pose2sim_halpe26").glob("*.json"))[:2]
     coco = _json(DET / "mmpose_coco17_dataset.json")

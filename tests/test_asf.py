@@ -3,10 +3,10 @@ limits files (the human figure's anatomical limits)."""
 
 from __future__ import annotations
 
-from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import data_path
 
 import pinrecon as pr
 from pinrecon.errors import InputError, UnknownNameError
@@ -14,7 +14,7 @@ from pinrecon.io.asf import bvh_limits_from_asf, read_asf
 from pinrecon.joint_limits import load_limits
 from pinrecon.synthetic import bundled_motion
 
-ASF = Path(__file__).parent / "data" / "cmu-asf_01.asf"
+ASF = data_path("project-test-data/cmu-asf_01.asf")
 
 
 def test_read_asf_values_of_the_file():

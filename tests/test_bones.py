@@ -6,10 +6,10 @@ decomposition, the rows' values by hand, the Jacobian by finite differences."""
 
 from __future__ import annotations
 
-from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import data_path
 from dense_blocks import row_jacobian_error
 from scipy.spatial.transform import Rotation
 
@@ -19,7 +19,7 @@ from pinrecon.rows import State
 from pinrecon.rows.bones import Bones, bone_row
 from pinrecon.synthetic import body_keypoints, bundled_motion, project_tracks, side_camera
 
-ASF = Path(__file__).parent / "data" / "cmu-asf_01.asf"
+ASF = data_path("project-test-data/cmu-asf_01.asf")
 
 
 def _channels(fig, joint):

@@ -9,11 +9,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from bvh_reference import reference_positions
-from conftest import CMU_UNIT_M, MIXED_BVH, WALK_BVH
+from conftest import CMU_UNIT_M, MIXED, WALK, data_path
 from scipy.spatial.transform import Rotation
 
 from pinrecon import Figure, InputError, UnknownNameError
 from pinrecon.io.bvh import load_bvh, read_bvh, static_joints, write_bvh
+
+WALK_BVH = data_path(WALK)
+MIXED_BVH = data_path(MIXED)
 
 TOL_M = 1e-6
 CMU_STATIC = ["LHipJoint", "RHipJoint", "LeftShoulder", "RightShoulder"]

@@ -13,7 +13,7 @@ import xml.etree.ElementTree as ET
 
 import numpy as np
 import pytest
-from conftest import DATA, REPO
+from conftest import REPO, data_dir
 
 from pinrecon import InputError, UnknownNameError
 from pinrecon.cameras import Perspective
@@ -25,7 +25,7 @@ try:
 except ModuleNotFoundError:  # Python < 3.11
     import tomli as tomllib
 
-CAL = DATA / "calibration"
+CAL = data_dir("project-test-data/calibration")
 QUALISYS_TOML = CAL / "pose2sim" / "Calib_qualisys.toml"
 QUALISYS_QCA = CAL / "pose2sim" / "Calib.qca.txt"
 SCENE_TOML = CAL / "pose2sim" / "Calib_scene.toml"

@@ -8,13 +8,12 @@ import json
 
 import numpy as np
 import pytest
-from conftest import DATA
+from conftest import data_file
 from scipy.spatial.transform import Rotation
 
 from pinrecon import InputError, Orthographic, Perspective, load_camera
 from pinrecon.cameras import camera_from_dict, look_at_rotation
 
-ASPSET = DATA / "aspset510_04ac-0026-right_frame.json"
 
 
 def random_rotation(seed):
@@ -160,7 +159,7 @@ def test_orthographic_center_defaults_to_zero():
 
 # ---------------------------------------------------------------- real calibration
 def aspset_camera(units="mm"):
-    d = json.loads(ASPSET.read_text())
+    d = json.loads(data_file("project-test-data/aspset510_04ac-0026-right_frame.json").read_text())
     K = np.array(d["intrinsic_matrix_3x4"])[:, :3]
     E = np.array(d["extrinsic_matrix_4x4_world_to_camera"])
     t = E[:3, 3] / (1000.0 if units == "m" else 1.0)

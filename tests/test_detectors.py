@@ -18,7 +18,7 @@ import warnings
 
 import numpy as np
 import pytest
-from conftest import DATA
+from conftest import data_dir, data_folder
 
 import pinrecon as pr
 from pinrecon import InputError
@@ -26,10 +26,10 @@ from pinrecon.cli import main
 from pinrecon.problem import make_problem
 from pinrecon.tracks import TracksWarning, load_tracks
 
-DET = DATA / "detectors"
+DET = data_dir("project-test-data/detectors")
 P2S_MULTI = DET / "pose2sim_body25b_multi"
 P2S_HALPE = DET / "pose2sim_halpe26"
-P2S_STATIC = DATA / "calibration" / "pose2sim" / "static_trial"
+P2S_STATIC = data_dir("project-test-data/calibration/pose2sim/static_trial")
 
 COCO17 = ["nose", "left_eye", "right_eye", "left_ear", "right_ear", "left_shoulder", "right_shoulder",
           "left_elbow", "right_elbow", "left_wrist", "right_wrist", "left_hip", "right_hip", "left_knee",
@@ -188,9 +188,7 @@ def test_mistake_a_coordinate_exactly_zero_is_missing_not_a_point_at_the_edge():
     were points at the image's left edge that the robust loss had to report as outliers).
     The frames are found here from the raw JSON; COCO's whole-pixel annotations keep their
     zeros (``test_coco_results_by_image_and_score``)."""
-    from conftest import REPO
-
-    folder = REPO / "examples" / "data" / "pose2sim_balancing" / "cam01_json"
+    folder = data_folder("pose2sim-balancing/pose/cam01_json")
     files = sorted(folder.glob("*.json"))
     raw = [raw_people(f) for f in files]
     zero = sorted(t for t, people in enumerate(raw) for k in people[0]  # the first person: the subject

@@ -11,7 +11,7 @@ import pathlib
 
 import numpy as np
 import pytest
-from conftest import CMU_UNIT_M, WALK_BVH
+from conftest import CMU_UNIT_M, WALK, data_path
 
 from pinrecon import (
     Figure,
@@ -26,6 +26,8 @@ from pinrecon.errors import PinreconError
 from pinrecon.io.bvh import load_bvh, read_bvh, write_bvh
 from pinrecon.io.results import load_result_npz, save_result_npz
 from pinrecon.tracks import Keyframes
+
+WALK_BVH = data_path(WALK)
 
 
 def raises_input_error(fn, *args, **kwargs) -> InputError:

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import data_path
 from scipy.spatial.transform import Rotation
 
 import pinrecon
@@ -18,8 +19,8 @@ from pinrecon.io.bvh_export import continuous_euler, export_result, urdf_figure_
 from pinrecon.io.csv_export import motion_table, write_csv
 
 ROOT = Path(__file__).resolve().parents[1]
-WALK = ROOT / "models" / "mocap" / "cmu-mb_02_01.bvh"
-MIXED = ROOT / "tests" / "data" / "cmu-max_131_03.bvh"
+WALK = data_path("mocap/cmu-mb_02_01.bvh")
+MIXED = data_path("project-test-data/cmu-max_131_03.bvh")
 CMU = 0.056444
 TOL_M = 1e-6
 

@@ -12,9 +12,11 @@ import json
 import numpy as np
 import pinocchio as pin
 import pytest
-from conftest import CMU_UNIT_M, REPO, WALK_BVH
+from conftest import CMU_UNIT_M, REPO, WALK, data_path
 
 from pinrecon import Figure, InputError, Keypoint, UnknownNameError, load_keypoint_map
+
+WALK_BVH = data_path(WALK)
 
 EPS = 1e-6
 SEEDS = [0, 1, 2]

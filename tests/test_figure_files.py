@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import data_path
 
 from pinrecon import Figure
 from pinrecon.errors import UnknownNameError
@@ -16,7 +17,7 @@ from pinrecon.io.bvh_format import read_bvh
 
 yourdfpy = pytest.importorskip("yourdfpy")
 
-BVH = Path(__file__).resolve().parents[1] / "models" / "mocap" / "cmu-mb_05_02.bvh"
+BVH = data_path("mocap/cmu-mb_05_02.bvh")
 SCALE = 0.056444
 
 

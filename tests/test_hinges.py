@@ -5,10 +5,10 @@ finite differences."""
 
 from __future__ import annotations
 
-from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import data_path
 from dense_blocks import row_jacobian_error
 from scipy.spatial.transform import Rotation
 
@@ -18,7 +18,7 @@ from pinrecon.rows import State
 from pinrecon.rows.hinges import Hinges, hinge_row
 from pinrecon.synthetic import body_keypoints, bundled_motion, project_tracks, side_camera
 
-ASF = Path(__file__).parent / "data" / "cmu-asf_01.asf"
+ASF = data_path("project-test-data/cmu-asf_01.asf")
 
 
 def test_hinge_axes_of_the_asf_file():

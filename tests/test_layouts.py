@@ -13,7 +13,7 @@ import struct
 import numpy as np
 import pinocchio as pin
 import pytest
-from conftest import DATA
+from conftest import data_dir, data_file
 
 from pinrecon import Figure, InputError
 from pinrecon._resources import example_robot_data_robots
@@ -29,7 +29,7 @@ from pinrecon.layouts import (
 )
 from pinrecon.layouts.detect import check_layout, checks_for, detect_layout
 
-DET = DATA / "detectors"
+DET = data_dir("project-test-data/detectors")
 
 
 # ---------------------------------------------------------------------------- the registry
@@ -187,7 +187,7 @@ def raw_points(path, index=0):
 def test_geometry_tells_body25_from_body25b():
     body25 = np.concatenate([raw_points(DET / "spin_body25" / "im1010_openpose.json"),
                              raw_points(next((DET / "prohmr_body25").glob("*.json")))])
-    body25b = raw_points(DATA / "calibration" / "pose2sim" / "static_trial" / "Static_cam_01.00000.json")
+    body25b = raw_points(data_file("project-test-data/calibration/pose2sim/static_trial/Static_cam_01.00000.json"))
     a, b = LAYOUTS["body25"], LAYOUTS["body25b"]
     assert check_layout(body25, a).fits and check_layout(body25, b).contradicted
     assert check_layout(body25b, b).fits and check_layout(body25b, a).contradicted

@@ -16,7 +16,7 @@ import json
 
 import numpy as np
 import pytest
-from conftest import CMU_UNIT_M, DATA, WALK_BVH
+from conftest import CMU_UNIT_M, WALK, data_path
 from scipy.interpolate import CubicSpline
 
 import pinrecon as pr
@@ -29,7 +29,9 @@ from pinrecon.starts.rest import place_on_tracks
 from pinrecon.starts.triangulation import triangulate
 from pinrecon.synthetic import body_keypoints, bundled_motion, project_tracks
 
-POSE2SIM_TOML = DATA / "calibration" / "pose2sim" / "Calib_scene.toml"
+WALK_BVH = data_path(WALK)
+
+POSE2SIM_TOML = data_path("project-test-data/calibration/pose2sim/Calib_scene.toml")
 
 
 @pytest.fixture(scope="module")

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import data_path
 
 from pinrecon.planarity import (
     LinkGraph,
@@ -23,7 +24,7 @@ from pinrecon.planarity import (
 
 TESTS_DIR = Path(__file__).resolve().parent
 REPO = TESTS_DIR.parent
-WALK = REPO / "models" / "mocap" / "cmu-mb_02_01.bvh"
+WALK = data_path("mocap/cmu-mb_02_01.bvh")
 CMU_UNIT_M = 0.056444
 
 

@@ -16,7 +16,9 @@ from pinrecon.errors import InputError, UnknownNameError
 from pinrecon.proportions import HUMAN_GROUPS, Proportions, mirror_name
 from pinrecon.synthetic import smooth_motion
 
-from conftest import CMU_UNIT_M, WALK_BVH
+from conftest import CMU_UNIT_M, WALK, data_path
+
+WALK_BVH = data_path(WALK)
 
 
 @pytest.fixture(scope="module")

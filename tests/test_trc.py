@@ -10,13 +10,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import data_path
 
 import pinrecon as pr
 from pinrecon.cli import main
 from pinrecon.io.trc import load_trc, write_trc
 
 REPO = Path(__file__).resolve().parents[1]
-TRIAL = REPO / "examples" / "data" / "pose2sim_balancing" / "S00_P00_T01_BalancingTrial_0-100.trc"
+TRIAL = data_path("pose2sim-balancing/pose-3d/S00_P00_T01_BalancingTrial_0-100.trc")
 
 
 def test_pose2sims_trial_reads_as_written_in_metres_with_z_up():

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import data_path
 from scipy.spatial.transform import Rotation
 
 pytest.importorskip("matplotlib")
@@ -32,7 +33,7 @@ from pinrecon.viz import (  # noqa: E402
 )
 
 ROOT = Path(__file__).resolve().parents[1]
-WALK = ROOT / "models" / "mocap" / "cmu-mb_02_01.bvh"
+WALK = data_path("mocap/cmu-mb_02_01.bvh")
 CMU = 0.056444
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from alignment import pa_mpjpe_mm
-from conftest import REPO
+from conftest import REPO, data_dir, data_path
 
 import pinrecon as pr
 from pinrecon.cli import main
@@ -19,9 +19,9 @@ from pinrecon.io.bvh import load_bvh
 from pinrecon.io.trc import load_trc
 from pinrecon.layouts import COCO_17
 
-FOLDER = REPO / "examples" / "data" / "pose2sim_balancing"
-TRACKS = FOLDER / "cam01_json"
-TRC = FOLDER / "S00_P00_T01_BalancingTrial_0-100.trc"
+TRACKS = data_dir("pose2sim-balancing/pose/cam01_json")
+TRC = data_path("pose2sim-balancing/pose-3d/S00_P00_T01_BalancingTrial_0-100.trc")
+CALIB = data_path("pose2sim-balancing/calibration/Calib_qualisys.toml")
 COCO12 = list(COCO_17[5:])  # the 12 body points: shoulders, elbows, wrists, hips, knees, ankles
 
 
@@ -83,7 +83,7 @@ def test_the_focal_length_the_prior_gives_is_not_claimed(your_video):
 
     res = pr.load_result(your_video / "result.npz")
     rep = res.calibration["camera_auto"]["focal"]
-    cams = load_cameras(REPO / "tests" / "data" / "calibration" / "pose2sim" / "Calib_qualisys.toml")
+    cams = load_cameras(CALIB)
     assert cams[0].name == "cam_01"  # the trial's camera 1
     true_f = float(cams[0].camera.K[0, 0])
     lo, hi = rep["interval_px"]
@@ -105,7 +105,7 @@ def test_coco17_points_through_pose2sims_calibration_of_camera_1():
     131.6 (98-192): the spread, not the reading, decides this number."""
     from pinrecon.io.calibration import load_cameras
 
-    cam = load_cameras(REPO / "tests" / "data" / "calibration" / "pose2sim" / "Calib_qualisys.toml")[0]
+    cam = load_cameras(CALIB)[0]
     assert cam.name == "cam_01"
     fig = pr.Figure.human()
     tracks = pr.load_tracks(TRACKS, fps=60)
@@ -158,7 +158,7 @@ def test_no_camera_file_with_four_keyframes_from_the_triangulation():
 
     from pinrecon.io.calibration import load_cameras
 
-    cal = load_cameras(REPO / "tests" / "data" / "calibration" / "pose2sim" / "Calib_qualisys.toml")[0].camera
+    cal = load_cameras(CALIB)[0].camera
     tracks = pr.load_tracks(TRACKS, fps=60)
     fig = pr.Figure.human("auto", tracks=tracks)
     tracks = tracks.select([n for n in tracks.names if n in fig.keypoint_names])

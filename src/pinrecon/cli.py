@@ -244,8 +244,12 @@ def _feet_from_args(args) -> dict:
 
 
 def cmd_demo(args) -> int:
+    from .datasets import clip, source
     from .demo import run_demo
 
+    if not args.quiet:
+        print(f"pinrecon demo: data from {source()}", file=sys.stderr)
+    clip("walk")  # fetched (with a progress bar) before the work, or one clear error
     progress = _Progress(args.quiet, 100)
     if not args.quiet:
         print(f"pinrecon demo: reconstructing the bundled CMU walk into {args.out}/ (the lab setting, then your "

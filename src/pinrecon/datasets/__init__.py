@@ -40,6 +40,7 @@ __all__ = [
     "cmu",
     "data_root",
     "cache_dir",
+    "source",
     "CLIPS",
 ]
 
@@ -103,6 +104,14 @@ def cache_dir() -> Path:
     return Path(pooch.os_cache("pinrecon"))
 
 
+def source() -> str:
+    """Where data files come from now, in words: the ``PINRECON_DATA`` folder or the cache."""
+    root = data_root()
+    if root is not None:
+        return f"{ENV_DATA}={root}"
+    return f"the download cache {cache_dir()} (set {ENV_DATA} to use a local data folder)"
+
+
 def _entry(name: str) -> Entry:
     try:
         return registry()[name]
@@ -111,7 +120,6 @@ def _entry(name: str) -> Entry:
         hint = f"; did you mean {', '.join(close)}?" if close else ""
         raise DatasetError(
             f"'{name}' is not a registered dataset file{hint} (pinrecon.datasets.names() lists them)",
-            field="dataset",
         ) from None
 
 
@@ -155,7 +163,6 @@ def fetch(name: str, *, progressbar: bool | None = None) -> Path:
             raise DatasetError(
                 f"{_where(entry)} is not in {ENV_DATA}={root}; put it there, or unset {ENV_DATA} "
                 "to download it",
-                field="dataset",
             )
         return _checked(path, entry)
     cached = cache_dir() / name
@@ -164,7 +171,6 @@ def fetch(name: str, *, progressbar: bool | None = None) -> Path:
     if entry.url is None:
         raise DatasetError(
             f"{_where(entry)} cannot be downloaded; set {ENV_DATA} to a folder that holds it",
-            field="dataset",
         )
     return _download(entry, cached, progressbar)
 
@@ -195,7 +201,6 @@ def _download(entry: Entry, target: Path, progressbar: bool | None) -> Path:
         raise DatasetError(
             f"could not download {_where(entry)}: {type(exc).__name__}; offline? set {ENV_DATA} "
             "to a local copy of the data folder",
-            field="dataset",
         ) from None
     return Path(got)
 
@@ -212,13 +217,18 @@ def folder(prefix: str, *, progressbar: bool | None = None) -> Path:
 
 
 def clip(name: str) -> Path:
-    """A CMU clip by short name (``walk``, ``run``, ``spin``, ``dance``) or registered name."""
+    """A CMU clip by short name (``walk``, ``run``, ``spin``, ``dance``), registered name, or a
+    registered BVH file's name alone (``"cmu-mb_05_02.bvh"``)."""
     if name in CLIPS:
         return fetch(CLIPS[name])
     if name in registry():
         return fetch(name)
+    same = [n for n in registry() if n.endswith(".bvh") and n.rsplit("/", 1)[-1] == name]
+    if len(same) == 1:
+        return fetch(same[0])
     raise DatasetError(
-        f"no clip '{name}'; short names are {sorted(CLIPS)}, or give a registered name",
+        f"no clip '{name}'; short names are {sorted(CLIPS)}, or give a registered name"
+        + (f" ({', '.join(same)})" if same else ""),
         field="clip",
     )
 
