@@ -149,7 +149,7 @@ LAYERS = [
     ("problem", ["pinrecon.problem", "pinrecon.contact", "pinrecon.identifiability"]),
     ("starts", ["pinrecon.starts", "pinrecon.planarity"]),
     ("result", ["pinrecon.result"]),
-    ("pipeline", ["pinrecon.reconstruct", "pinrecon.synthetic", "pinrecon.faults", "pinrecon.metrics",
+    ("pipeline", ["pinrecon.reconstruct", "pinrecon.stages", "pinrecon.synthetic", "pinrecon.faults", "pinrecon.metrics",
                   "pinrecon.windowed", "pinrecon.unfamiliar", "pinrecon.stability"]),
     ("exports and pictures", ["pinrecon.io.bvh_export", "pinrecon.io.csv_export", "pinrecon.viz"]),
     ("applications", ["pinrecon.cli", "pinrecon.commands", "pinrecon.demo", "pinrecon.workbench", "pinrecon"]),

@@ -61,12 +61,21 @@ class _Progress:
         self.t0 = time.perf_counter()
         self.tty = sys.stderr.isatty()
         self.dirty = False
+        self.label = ""
+
+    def stage(self, name: str):
+        """A stage of :func:`pinrecon.reconstruct` starts (:mod:`pinrecon.stages`): one labelled line."""
+        if self.quiet:
+            return
+        self.close()
+        print(f"pinrecon: stage {name} ({time.perf_counter() - self.t0:.1f}s)", file=sys.stderr, flush=True)
+        self.label = f"{name}: "
 
     def __call__(self, rep):
         if self.quiet:
             return None
         line = (
-            f"iter {rep.iteration:3d}/{self.max}  cost {rep.cost:.6g}  |dx| {rep.step_norm:.2g}  "
+            f"{self.label}iter {rep.iteration:3d}/{self.max}  cost {rep.cost:.6g}  |dx| {rep.step_norm:.2g}  "
             f"{time.perf_counter() - self.t0:5.1f}s"
         )
         if not rep.accepted:
@@ -137,7 +146,7 @@ def cmd_reconstruct(args) -> int:
     progress = _Progress(args.quiet, args.max_iterations)
     kw = {"fps_out": args.fps_out, "weights": Weights(**wkw), "options": opts, "seed": args.seed,
           "calibrate": args.calibrate, "window": args.window, **_feet_from_args(args)}
-    res = reconstruct(fig, tracks, cam, kf, callback=progress, **kw)
+    res = reconstruct(fig, tracks, cam, kf, callback=progress, skip=args.skip, progress=progress.stage, **kw)
     progress.close()
     if args.stability:
         from .stability import stability
@@ -412,6 +421,9 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--sigma-limits", type=float, help="joint-limit barrier sd, rad")
     add_pose_prior_argument(r)
     r.add_argument("--max-iterations", type=int, default=100)
+    r.add_argument("--skip", nargs="+", default=(), metavar="STAGE",
+                   help="switch stages off by name: prior, turns, mirrors, faults, focal, feet (the start and the "
+                   "solve always run; the summary lists every stage with its time and what it changed)")
     r.add_argument("--window", type=int, help="solve in overlapping windows of this many frames, in bounded memory "
                    "(default: windows of 2000 frames past 10000 frames; 0: one batch solve)")
     r.add_argument("--floor", help="feet on the ground: 'auto' (estimated under the feet; the default for "

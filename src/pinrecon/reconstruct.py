@@ -22,9 +22,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .contact import foot_keypoints, solve_on_the_floor
+from .contact import foot_keypoints
 from .errors import InputError
-from .faults import fault_stage, report_outliers
 from .identifiability import proportions_identifiability
 from .problem import (
     ReconstructionProblem,
@@ -38,6 +37,7 @@ from .result import Result, load_result
 from .rows import Measurement2D
 from .rows.posture import prior_for
 from .solver import SolveResult, SolverOptions, globals_of, solve
+from .stages import Run, StageReport, check_skip, run_stages
 from .starts import available_starts, get_start, initial_trajectory
 from .starts.camera_auto import (
     AutoCamera,
@@ -48,10 +48,7 @@ from .starts.camera_auto import (
     keyframe_correspondences,
     keyframe_focal_interval,
     placed_by_keyframes,
-    settle_focal,
 )
-from .starts.mirrors import mirror_stage
-from .starts.turns import turn_stage
 from .tracks import Keyframe, Keyframes, Markers, Tracks
 from .unfamiliar import (
     BROADER_PRIOR,
@@ -251,6 +248,8 @@ def reconstruct(
     image_size=None,
     window: int | None = None,
     lengths_from_tracks: bool = True,
+    skip: Sequence[str] = (),
+    progress: Callable | None = None,
 ) -> Result:
     """Reconstruct the figure's motion from 2D tracks seen by ``camera`` (or cameras).
 
@@ -329,6 +328,9 @@ def reconstruct(
         (:mod:`pinrecon.windowed`); default: windows of 2000 frames past 10000 frames
         (unless ``floor`` or ``contact`` is given; the default feet stage is then left
         out), ``0``: one batch solve whatever the length.
+    skip : names of stages to switch off (:data:`pinrecon.stages.STAGES`: ``prior``,
+        ``turns``, ``mirrors``, ``faults``, ``focal``, ``feet``); the start and the solve always run.
+    progress : called with each stage's name as it starts (the CLI's labelled progress).
 
     Returns
     -------
@@ -336,8 +338,10 @@ def reconstruct(
     each camera's reprojection error (``reprojection_error_px_per_camera``). Calibrated,
     ``result.figure`` is the calibrated figure (its keypoints are ``keypoints3d``),
     ``result.cameras`` the fitted cameras and ``result.calibration`` the factors, the
-    fitted lengths and focal lengths.
+    fitted lengths and focal lengths. ``result.stages`` holds one
+    :class:`~pinrecon.stages.StageReport` per stage (time, cost before and after, what changed).
     """
+    skip = check_skip(skip)
     off = floor is False or isinstance(floor, str) and floor.strip().lower() == "none"
     if off and contact not in (None, False):
         raise InputError("contacts need a floor: drop floor='none' or the contacts", field="contact")
@@ -350,69 +354,59 @@ def reconstruct(
     inputs = {"figure": figure, "tracks": tracks, "camera": camera, "keyframes": keyframes, "fps_out": fps_out,
               "weights": weights, "keypoints": keypoints}
     problem = make_problem(**inputs, calibrate=mode)
-    span = windowed_length(problem.n_frames, window if window is not None or floor is None and contact is None else 0)
-    if span and calibrate is None and mode in ("lengths", "lengths+camera") and \
-            default_calibrate(figure, keyframes, several_views=_several_views(tracks)) == "none":
-        # windows measure no lengths: the default without 3D information stays the figure's own
-        mode = "camera" if auto is not None else "none"
-        problem = make_problem(**inputs, calibrate=mode)
-    start = _start_name(init, seed)
     limit = switch_share(bool(keyframes), _several_views(tracks))  # the unfamiliar share that switches
+    span = windowed_length(problem.n_frames, window if window is not None or floor is None and contact is None else 0)
     if span:  # a long clip: windows in bounded memory (the fault stage runs in each)
         if floor is not None or contact is not None:
             raise InputError("the feet stage (floor, contact) needs one batch solve: pass window=0", field="window")
-        result = _package(problem, solve_windowed(problem, start, options, callback, window=span,
-                                                  mirrors=_mirrors(problem, init)), auto, identify=False)
-        switch = None if default is None else broader_prior(default, "auto", result.extras, share=limit)
-        if switch is None:
-            return result
-        problem = make_problem(**{**inputs, "weights": replace(weights, pose_prior_model=switch[0])}, calibrate=mode)
-        result = _package(problem, solve_windowed(problem, start, options, callback, window=span,
-                                                  mirrors=_mirrors(problem, init)), auto, identify=False, judge=default)
-        result.extras.update(switch_extras(*switch))
-        return result
+        return _reconstruct_windowed(problem, inputs, mode, calibrate, auto, _start_name(init, seed), init, span,
+                                     default, limit, options, callback)
     if _pose_unknown(auto, mode, camera):  # the keyframes placed the auto camera: its place refined too
         inputs["camera_pose"] = True
         problem = make_problem(**inputs, calibrate=mode)
         auto = {**auto, "pose": "from the point keyframes, then refined by the solve with the tracks"}
     if not off and floor is None and contact is None and default_feet(figure, tracks, keypoints):
         floor = contact = "auto"
-    lengths = bool(lengths_from_tracks) and _lengths_measurable(auto and auto["projection"]) and _cold_start(init)
-    with warnings.catch_warnings(record=default is not None) as caught:
-        if default is not None:
-            warnings.simplefilter("always")
-        problem, res = _main_solve(problem, inputs, start, lengths, options, callback)
-    switch = None
-    if default is not None:  # decided on the main solve, before the stages that polish it
-        unfamiliar = unfamiliar_poses(problem, problem.figure.normalize(res.x))
-        switch = None if unfamiliar is None else broader_prior(default, "auto", unfamiliar.to_extras(), share=limit)
-        if switch is None:
-            for c in caught:
-                warnings.warn_explicit(c.message, c.category, c.filename, c.lineno, source=c.source)
-        else:  # solved again from its start with the broader prior (the first solve's warnings dropped)
-            inputs["weights"] = replace(weights, pose_prior_model=switch[0])
-            problem, res = _main_solve(make_problem(**inputs, calibrate=mode), inputs, start, lengths, options,
-                                       callback)
-    res = turn_stage(problem, res, options, callback)  # the solution's fast turns wound (warm re-solves)
-    if _mirrors(problem, init):  # the limbs' spans mirrored where the MAP cost falls
-        res = mirror_stage(problem, res, options, callback)
-    res = fault_stage(problem, res, options, callback)  # left/right swaps repaired (warm re-solve), outliers
-    faulted = res
-    res, auto = settle_focal(problem, res, auto, options=options)  # an auto camera's focal: down its valley
-    if res is not faulted:  # restarted down the focal's valley: the outliers of where it ended
-        report_outliers(problem, res)
-    feet = None
-    if floor is not None or contact is not None:
-        problem, res, feet = solve_on_the_floor(
-            problem, res, "auto" if floor is None else floor, "auto" if contact is None else contact,
-            settings=contact_settings, options=options, callback=callback,
-        )
+    run = Run(problem, inputs, mode, _start_name(init, seed), options, callback, auto, default_prior=default,
+              lengths=bool(lengths_from_tracks) and _lengths_measurable(auto and auto["projection"]) and _cold_start(init),
+              switch_limit=limit, mirrors=_mirrors(problem, init), floor=floor, contact=contact,
+              contact_settings=contact_settings, measure_lengths=_lengths_from_tracks)
+    reports = run_stages(run, skip, progress)
     # a clip solved again with the broader prior is judged by the default's clips (a fallback knows no poses)
-    result = _package(problem, res, auto, judge=None if switch is None else default)
-    if feet is not None:
-        result.extras.update(feet.to_extras())
+    result = _package(run.problem, run.res, run.auto, judge=run.judge)
+    if run.feet is not None:
+        result.extras.update(run.feet.to_extras())
+    if run.switch is not None:
+        result.extras.update(switch_extras(*run.switch))
+    result.stages = reports
+    return result
+
+
+def _reconstruct_windowed(problem, inputs, mode, calibrate, auto, start, init, span, default, limit, options,
+                          callback) -> Result:
+    """:func:`reconstruct` of a long clip in windows of ``span`` frames (:mod:`pinrecon.windowed`),
+    solved again with the broader prior when the default does not know the clip."""
+    import time
+
+    t0 = time.perf_counter()
+    figure, keyframes = inputs["figure"], inputs["keyframes"]
+    if calibrate is None and mode in ("lengths", "lengths+camera") and \
+            default_calibrate(figure, keyframes, several_views=_several_views(inputs["tracks"])) == "none":
+        # windows measure no lengths: the default without 3D information stays the figure's own
+        mode = "camera" if auto is not None else "none"
+        problem = make_problem(**inputs, calibrate=mode)
+    res = solve_windowed(problem, start, options, callback, window=span, mirrors=_mirrors(problem, init))
+    result = _package(problem, res, auto, identify=False)
+    switch = None if default is None else broader_prior(default, "auto", result.extras, share=limit)
     if switch is not None:
+        weights = replace(inputs["weights"], pose_prior_model=switch[0])
+        problem = make_problem(**{**inputs, "weights": weights}, calibrate=mode)
+        res = solve_windowed(problem, start, options, callback, window=span, mirrors=_mirrors(problem, init))
+        result = _package(problem, res, auto, identify=False, judge=default)
         result.extras.update(switch_extras(*switch))
+    changed = f"windows of {span} frames" + (f", pose prior -> {switch[0]}" if switch else "")
+    result.stages = [StageReport("windowed", time.perf_counter() - t0, float(res.initial_cost), float(res.cost),
+                                 changed)]
     return result
 
 
@@ -440,16 +434,6 @@ def _mirrors(problem, init) -> bool:
 def _cold_start(init) -> bool:
     """Whether ``init`` asks for a cold start (none, or a start's name), not a warm one."""
     return init is None or isinstance(init, str)
-
-
-def _main_solve(problem: ReconstructionProblem, inputs: dict, start, lengths: bool, options, callback):
-    """The start (``start``; with ``lengths``, the limbs' lengths measured from the tracks,
-    :func:`_lengths_from_tracks`) and the batch solve from it, before the stages that polish
-    it. Returns ``(problem, res)``: the problem may be rebuilt around measured lengths."""
-    q0 = initial_trajectory(problem, start)
-    if lengths:
-        problem, q0 = _lengths_from_tracks(problem, q0, start, inputs)
-    return problem, solve(problem, q0, options, callback, active=problem.active, g0=problem.g0)
 
 
 def reconstruct_markers(

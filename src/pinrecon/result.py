@@ -24,7 +24,33 @@ from .io.results import load_result_npz, save_result_npz
 from .rows.posture import unused_priors
 from .solver import SolveResult
 
-__all__ = ["Result", "hypothesis_spans", "load_result"]
+__all__ = ["Result", "StageReport", "hypothesis_spans", "load_result"]
+
+
+@dataclass
+class StageReport:
+    """What one stage did: its name, wall time (s), the MAP cost before and after (the
+    solver's cost, half the sum of squared whitened rows), and what it changed in words
+    (``"skipped: ..."`` when it had nothing to do or was switched off)."""
+
+    name: str
+    seconds: float
+    cost_before: float
+    cost_after: float
+    changed: str
+
+    @property
+    def ran(self) -> bool:
+        return not self.changed.startswith("skipped")
+
+    def to_dict(self) -> dict:
+        return {"name": self.name, "seconds": float(self.seconds), "cost_before": float(self.cost_before),
+                "cost_after": float(self.cost_after), "changed": self.changed}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> StageReport:
+        return cls(str(d["name"]), float(d["seconds"]), float(d["cost_before"]), float(d["cost_after"]),
+                   str(d["changed"]))
 
 
 @dataclass
@@ -48,6 +74,8 @@ class Result:
     reprojection_error_px_per_camera : (C, T) mean reprojection error of each camera's
         observed points per frame (NaN where that camera observed nothing); the
         ``reprojection_error_px`` above is the mean over every camera's points.
+    stages : one :class:`StageReport` per stage of the pipeline that made it
+        (:mod:`pinrecon.stages`), in the order they ran.
     calibration : what a calibrated solve fitted (:meth:`pinrecon.problem.
         ReconstructionProblem.calibration`): ``mode``, the segment groups' ``factors``,
         ``lengths_m`` and ``generic_lengths_m``, the ``cameras``' start and fitted focal
@@ -69,6 +97,7 @@ class Result:
     camera_names: list = field(default_factory=list)
     reprojection_error_px_per_camera: np.ndarray | None = None
     calibration: dict = field(default_factory=dict)
+    stages: list = field(default_factory=list)
 
     def __post_init__(self):
         if not self.cameras and self.camera is not None:
@@ -126,11 +155,23 @@ class Result:
             lines.append(
                 f"solver: {s.status} after {s.iterations} iterations in {s.time:.2f} s, cost {s.initial_cost:.6g} -> {s.cost:.6g}"
             )
+        lines += self.stages_summary()
         lines += self.calibration_summary()
         lines += self.feet_summary()
         lines += self.faults_summary()
         lines += stability_lines(self.extras, self.fps)
         return "\n".join(lines)
+
+    def stages_summary(self) -> list[str]:
+        """The stages as a short table: name, time, MAP cost before and after, what changed."""
+        if not self.stages:
+            return []
+        total = sum(s.seconds for s in self.stages)
+        lines = [f"stages ({total:.2f} s in all): time, cost before -> after, what changed"]
+        for s in self.stages:
+            cost = f"{s.cost_before:.6g} -> {s.cost_after:.6g}" if s.ran else "-"
+            lines.append(f"  {s.name:<8} {s.seconds:7.2f} s  {cost:<24} {s.changed}")
+        return lines
 
     def faults_summary(self, limit: int = 6) -> list[str]:
         """Uncertain limb-reflection spans (the hypotheses start), poses the pose prior does
@@ -329,6 +370,7 @@ class Result:
             camera=np.array(json.dumps(self.camera.to_dict()) if self.camera is not None else ""),
             **self._cameras_arrays(),
             **({"calibration": np.array(json.dumps(self.calibration))} if self.calibration else {}),
+            **({"stages": np.array(json.dumps([s.to_dict() for s in self.stages]))} if self.stages else {}),
             solver_status=np.array(self.solve.status if self.solve else ""),
             solver_iterations=np.int64(self.solve.iterations if self.solve else 0),
             **{k: v for k, v in self.extras.items()},
@@ -346,6 +388,16 @@ def _calibration(d, path) -> dict:
     if not isinstance(out, dict):
         raise InputError("must be a JSON object", file=path, field="calibration")
     return out
+
+
+def _stages(d, path) -> list[StageReport]:
+    """The ``stages`` JSON of a result file ([] when absent)."""
+    if "stages" not in d:
+        return []
+    try:
+        return [StageReport.from_dict(x) for x in json.loads(str(d["stages"]))]
+    except (ValueError, TypeError, KeyError) as exc:
+        raise InputError(f"not a list of stage reports ({exc})", file=path, field="stages") from None
 
 
 def _identifiability_lines(ident, groups: list[str]) -> list[str]:
@@ -408,6 +460,7 @@ def load_result(path) -> Result:
         reprojection_error_px_per_camera=d.get("reprojection_error_px_per_camera"),
         extras={k: d[k] for k in d if k in FOOT_EXTRAS or k.startswith(FAULT_EXTRAS_PREFIXES)},
         calibration=_calibration(d, path),
+        stages=_stages(d, path),
     )
 
 

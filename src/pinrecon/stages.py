@@ -1,0 +1,200 @@
+"""The stages of :func:`pinrecon.reconstruct`, in the order they run.
+
+DiFranco, Cham & Rehg's section 4 as a list: a start and the batch MAP solve, then the stages
+that polish the solution. Every stage has one signature: it takes the :class:`Run` (the problem,
+the current solution and what the stages share) and returns what it changed, in words; the
+pipeline times it and records a :class:`StageReport` (time, the MAP cost before and after, what
+changed). A stage that has nothing to do returns ``None`` and is reported as skipped::
+
+    result = reconstruct(fig, tracks, "auto", image_size=(1920, 1080), skip=("mirrors",))
+    for r in result.stages:
+        print(r.name, r.seconds, r.cost_after - r.cost_before, r.changed)
+
+=========  ======================================================================================
+``solve``  the start (the rest pose placed on the tracks, or the keyframes, or the named start;
+           with one camera, the limbs' lengths measured from the tracks) and the batch solve
+``prior``  the generic human's pose prior switched to its broader mixture and the clip solved
+           again when more of its poses than :func:`pinrecon.unfamiliar.switch_share` are
+           unknown to the default
+``turns``  fast turns the solution holds a turn too few of, wound (warm re-solves)
+``mirrors`` the limbs' spans mirrored where that lowers the MAP cost (with the broader prior)
+``faults`` left/right swaps of the detector repaired (warm re-solve), outliers reported
+``focal``  an auto camera's focal length carried down its cost valley
+``feet``   feet on the ground: floor and contact rows, solved again warm
+=========  ======================================================================================
+
+``skip`` (names of :data:`STAGES` but ``solve``) switches stages off; the result stays valid.
+"""
+
+from __future__ import annotations
+
+import time
+import warnings
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from .contact import solve_on_the_floor
+from .errors import InputError
+from .faults import fault_stage, report_outliers
+from .problem import ReconstructionProblem, make_problem
+from .result import StageReport
+from .solver import SolveResult, solve
+from .starts import initial_trajectory
+from .starts.camera_auto import settle_focal
+from .starts.mirrors import mirror_stage
+from .starts.turns import turn_stage
+from .unfamiliar import BROADER_PRIOR, broader_prior, unfamiliar_poses
+
+__all__ = ["STAGES", "StageReport", "Run", "run_stages", "check_skip"]
+
+
+@dataclass
+class Run:
+    """What the stages share: the problem (a stage may rebuild it), the current solution, the
+    inputs ``make_problem`` was called with (``inputs``, ``mode``), the auto camera's
+    description, and the settings the stages read."""
+
+    problem: ReconstructionProblem
+    inputs: dict
+    mode: str
+    start: str | np.ndarray
+    options: object = None
+    callback: Callable | None = None
+    auto: dict | None = None
+    res: SolveResult | None = None
+    lengths: bool = False  # measure the limbs' lengths from the tracks before the solve
+    default_prior: str | None = None  # the default prior named, when a broader one may replace it
+    switch_limit: float = 0.5
+    mirrors: bool = False
+    floor: object = None
+    contact: object = None
+    contact_settings: object = None
+    measure_lengths: Callable | None = None  # (problem, q0, start, inputs) -> (problem, q0)
+    # what the stages leave for the result
+    switch: tuple | None = None
+    judge: str | None = None
+    feet: object = None
+    caught: list = field(default_factory=list)
+
+
+def _solve(run: Run) -> str:
+    # with a broader prior in reserve, the warnings wait for the prior stage's verdict
+    with warnings.catch_warnings(record=run.default_prior is not None) as caught:
+        if run.default_prior is not None:
+            warnings.simplefilter("always")
+        q0 = initial_trajectory(run.problem, run.start)
+        what = "start and batch solve"
+        if run.lengths and run.measure_lengths is not None:
+            run.problem, q0 = run.measure_lengths(run.problem, q0, run.start, run.inputs)
+            if getattr(run.problem, "measured_lengths", None):
+                what += f", {len(run.problem.measured_lengths)} limb lengths measured from the tracks"
+        run.res = solve(run.problem, q0, run.options, run.callback, active=run.problem.active, g0=run.problem.g0)
+    run.caught = list(caught or [])
+    return f"{what}: {run.res.iterations} iterations, {run.res.status}"
+
+
+def _reissue(run: Run) -> None:
+    for c in run.caught:
+        warnings.warn_explicit(c.message, c.category, c.filename, c.lineno, source=c.source)
+    run.caught = []
+
+
+def _prior(run: Run) -> str | None:
+    if run.default_prior is None:
+        return None
+    unfamiliar = unfamiliar_poses(run.problem, run.problem.figure.normalize(run.res.x))
+    switch = None if unfamiliar is None else broader_prior(run.default_prior, "auto", unfamiliar.to_extras(),
+                                                           share=run.switch_limit)
+    if switch is None:
+        _reissue(run)
+        return None
+    run.caught = []  # the first solve's warnings are dropped
+    run.inputs["weights"] = replace(run.inputs["weights"], pose_prior_model=switch[0])
+    run.problem = make_problem(**run.inputs, calibrate=run.mode)
+    default, run.default_prior = run.default_prior, None
+    _solve(run)
+    run.default_prior, run.switch, run.judge = default, switch, default
+    run.mirrors = run.mirrors or run.problem.weights.pose_prior_model in BROADER_PRIOR.values()
+    return f"pose prior {default} -> {switch[0]} ({100 * switch[1]:.0f} % of the poses unfamiliar), solved again"
+
+
+def _warm(name: str, fn) -> Callable:
+    """A stage that re-solves warm through ``fn(problem, res, options, callback) -> res``."""
+
+    def stage(run: Run) -> str | None:
+        if name == "mirrors" and not run.mirrors:
+            return None
+        before = run.res
+        run.res = fn(run.problem, run.res, run.options, run.callback)
+        return "nothing kept" if run.res is before else "changed (warm re-solve kept)"
+
+    stage.__name__ = f"_{name}"
+    return stage
+
+
+def _focal(run: Run) -> str | None:
+    if not run.auto or run.auto.get("projection") != "perspective":
+        return None
+    before = run.res
+    run.res, run.auto = settle_focal(run.problem, run.res, run.auto, options=run.options)
+    if run.res is before:
+        return "focal length at the bottom of its valley"
+    report_outliers(run.problem, run.res)  # restarted down the valley: the outliers of where it ended
+    return "focal length carried down its valley (solved again)"
+
+
+def _feet(run: Run) -> str | None:
+    if run.floor is None and run.contact is None:
+        return None
+    run.problem, run.res, run.feet = solve_on_the_floor(
+        run.problem, run.res, "auto" if run.floor is None else run.floor,
+        "auto" if run.contact is None else run.contact,
+        settings=run.contact_settings, options=run.options, callback=run.callback,
+    )
+    return "feet on the floor: contact rows added, solved again"
+
+
+#: The stages in the order they run: name -> function of the :class:`Run`.
+STAGES: dict[str, Callable[[Run], str | None]] = {
+    "solve": _solve,
+    "prior": _prior,
+    "turns": _warm("turns", turn_stage),
+    "mirrors": _warm("mirrors", mirror_stage),
+    "faults": _warm("faults", fault_stage),
+    "focal": _focal,
+    "feet": _feet,
+}
+
+
+def check_skip(skip: Iterable[str] | None) -> frozenset:
+    """``skip`` as a set of stage names, refusing unknown names and ``solve``."""
+    names = frozenset(skip or ())
+    bad = sorted(n for n in names if n not in STAGES or n == "solve")
+    if bad:
+        raise InputError(f"unknown stage(s) {bad} to skip; stages that can be skipped: "
+                         f"{', '.join(n for n in STAGES if n != 'solve')}", field="skip")
+    return names
+
+
+def run_stages(run: Run, skip: Iterable[str] = (), progress: Callable | None = None) -> list[StageReport]:
+    """Run :data:`STAGES` in order on ``run`` (all but those in ``skip``); ``progress(name)``
+    is called as each stage starts. Returns one :class:`StageReport` per stage."""
+    reports = []
+    for name, stage in STAGES.items():
+        cost = float(run.res.cost) if run.res is not None else float("nan")
+        if name in skip:
+            reports.append(StageReport(name, 0.0, cost, cost, "skipped: switched off"))
+            continue
+        if progress is not None:
+            progress(name)
+        t0 = time.perf_counter()
+        changed = stage(run)
+        after = float(run.res.cost) if run.res is not None else float("nan")
+        if name == "solve":
+            cost = float(run.res.initial_cost)
+        reports.append(StageReport(name, time.perf_counter() - t0, cost, after,
+                                   changed if changed is not None else "skipped: nothing to do"))
+    _reissue(run)  # the main solve's warnings when the prior stage was switched off
+    return reports

@@ -1,0 +1,92 @@
+"""The pipeline as named stages (``pinrecon.stages``): every stage reported, each one switched
+off alone still gives a valid result, and the reports round-trip through the result file."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import pinrecon as pr
+from pinrecon.errors import InputError
+from pinrecon.metrics import pa_mpjpe
+from pinrecon.stages import STAGES
+
+
+@pytest.fixture(scope="module")
+def short_walk(coco_walk):
+    """One second of the detector walk (60 frames at 30 fps), no keyframes, auto camera."""
+    cam, tracks, P, _kf = coco_walk
+    return tracks.frames(0, 30), P[:30]
+
+
+def _solve(short_walk, human, **kw):
+    tracks, _ = short_walk
+    return pr.reconstruct(human, tracks, "auto", image_size=(1280, 720), **kw)
+
+
+@pytest.fixture(scope="module")
+def full(short_walk, human):
+    return _solve(short_walk, human)
+
+
+def test_every_stage_is_reported_in_order(full):
+    assert [s.name for s in full.stages] == list(STAGES)
+    solve = full.stages[0]
+    assert solve.ran and solve.seconds > 0
+    assert solve.cost_after <= solve.cost_before
+    # the MAP cost a stage leaves is the next one's start, and the last one's is the result's
+    for a, b in zip(full.stages, full.stages[1:]):
+        assert b.cost_before == pytest.approx(a.cost_after)
+    assert full.stages[-1].cost_after == pytest.approx(full.solve.cost)
+    text = full.summary()
+    assert "stages (" in text and all(f"  {n}" in text for n in STAGES)
+
+
+@pytest.mark.parametrize("stage", [n for n in STAGES if n != "solve"])
+def test_each_stage_switched_off_alone_gives_a_valid_result(short_walk, human, full, stage):
+    _, P = short_walk
+    res = _solve(short_walk, human, skip=(stage,))
+    rep = {s.name: s for s in res.stages}
+    assert rep[stage].changed == "skipped: switched off" and rep[stage].seconds == 0.0
+    assert np.all(np.isfinite(res.q)) and np.all(np.isfinite(res.keypoints3d))
+    assert np.nanmean(res.reprojection_error_px) < 6.0  # 2 px detector noise
+    kp = res.figure.keypoint_index(list(short_walk[0].names))
+    err = pa_mpjpe(res.keypoints3d[:, kp], P)  # mm
+    assert err < 60.0, f"without {stage}: PA-MPJPE {err:.1f} mm"
+
+
+def test_stage_reports_round_trip_through_the_result_file(full, tmp_path):
+    path = tmp_path / "r.npz"
+    full.save(path)
+    back = pr.load_result(path)
+    assert [s.to_dict() for s in back.stages] == [s.to_dict() for s in full.stages]
+
+
+def test_unknown_stage_is_refused_with_the_valid_names(short_walk, human):
+    with pytest.raises(InputError, match="unknown stage.*'mirror'.*prior, turns, mirrors, faults, focal, feet"):
+        _solve(short_walk, human, skip=("mirror",))
+    with pytest.raises(InputError, match="'solve'"):
+        _solve(short_walk, human, skip=("solve",))
+
+
+def test_progress_names_the_stages_that_run(short_walk, human):
+    seen = []
+    _solve(short_walk, human, skip=("feet",), progress=seen.append)
+    assert seen == [n for n in STAGES if n != "feet"]
+
+
+def test_cli_skip_and_labelled_stage_lines(short_walk, tmp_path, capsys):
+    from pinrecon.cli import main
+
+    tracks, _ = short_walk
+    tracks.save(tmp_path / "t.json")
+    out = tmp_path / "r.npz"
+    assert main(["reconstruct", "--figure", "human", "--tracks", str(tmp_path / "t.json"), "--camera", "auto",
+                 "--image-size", "1280", "720", "--skip", "turns", "feet", "--out", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert "pinrecon: stage solve" in err and "pinrecon: stage turns" not in err
+    rep = {s.name: s.changed for s in pr.load_result(out).stages}
+    assert rep["turns"] == rep["feet"] == "skipped: switched off"
+    assert main(["reconstruct", "--figure", "human", "--tracks", str(tmp_path / "t.json"), "--camera", "auto",
+                 "--image-size", "1280", "720", "--skip", "solve", "--out", str(tmp_path / "x.npz")]) == 2
+    assert not (tmp_path / "x.npz").exists()
