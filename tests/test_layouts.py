@@ -51,7 +51,8 @@ def test_every_layout_points_the_human_can_carry_are_on_its_map(name):
     human = Figure.human(lay.human_map)
     carried = [n for n in lay.names if n in human.keypoint_names]
     missing = [n for n in lay.names if n not in human.keypoint_names]
-    assert all(n.startswith("h36m_") for n in missing), missing  # only H36M's spine/thorax/neck-nose
+    hands = {f"{s}_{f}" for s in ("left", "right") for f in ("pinky", "index", "thumb")}  # MediaPipe's: no fingers
+    assert all(n.startswith("h36m_") or n in hands for n in missing), missing  # and H36M's spine/thorax/neck-nose
     assert len(carried) >= 12
 
 
@@ -81,15 +82,16 @@ def test_known_names_include_every_layout():
 
 # ---------------------------------------------------------------------------- human maps
 def test_bundled_maps_and_bad_names():
-    assert set(human_keypoint_maps()) == {"coco17", "body25", "body25b", "halpe26", "joints"}
+    assert set(human_keypoint_maps()) == {"coco17", "body25", "body25b", "halpe26", "joints", "mediapipe33"}
     assert human_keypoint_map("BODY25") == human_keypoint_maps()["body25"]
-    with pytest.raises(InputError, match=r"unknown keypoint map 'body_25x'.*body25, body25b, coco17, halpe26, joints"):
+    with pytest.raises(InputError, match=r"unknown keypoint map 'body_25x'.*body25, body25b, coco17, halpe26, joints, "
+                       r"mediapipe33"):
         Figure.human("body_25x")
 
 
 @pytest.fixture(scope="module")
 def body_maps():
-    return {m: Figure.human(m) for m in ("coco17", "body25", "body25b", "halpe26")}
+    return {m: Figure.human(m) for m in ("coco17", "body25", "body25b", "halpe26", "mediapipe33")}
 
 
 def frame_origin(fig, q, frame):
@@ -174,6 +176,22 @@ def test_feet_points_sit_on_the_foot(body_maps, m):
             assert p[1] < -0.05  # near the sole, below the ankle
         assert off[f"{side}_heel"][0] < -0.05 < 0.15 < off[f"{side}_small_toe"][0] < off[f"{side}_big_toe"][0]
         assert medial * (off[f"{side}_big_toe"][2] - off[f"{side}_small_toe"][2]) > 0.03  # big toe inside
+
+
+def test_mediapipe_feet_and_face_points(body_maps):
+    """BlazePose's heel and foot tip on the foot mesh (the tip at its front, on the mid-line);
+    its eye corners either side of the eye, its mouth corners below the nose."""
+    fig = body_maps["mediapipe33"]
+    lo, hi = foot_mesh_box()
+    off = {k.name: np.array(k.offset) for k in fig.keypoints_def}
+    for side, out in (("left", -1), ("right", +1)):
+        tip, heel = off[f"{side}_foot_index"], off[f"{side}_heel"]
+        for p in (tip, heel):
+            assert np.all(p >= lo - 1e-3) and np.all(p <= hi + 1e-3) and p[1] < -0.05
+        assert tip[0] > hi[0] - 0.01 and abs(tip[2]) < 0.01 and heel[0] < lo[0] + 0.01
+        inner, eye, outer = (off[f"{side}_eye{s}"][2] * out for s in ("_inner", "", "_outer"))
+        assert 0 < inner < eye < outer
+        assert off[f"mouth_{side}"][1] < off["nose"][1] and off[f"mouth_{side}"][2] * out > 0
 
 
 # ---------------------------------------------------------------------------- geometry

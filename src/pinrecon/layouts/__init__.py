@@ -14,6 +14,9 @@ the body whatever the detector:
 * ``head_top``: the top of the head (BODY_25B ``HeadTop``, Halpe ``head``,
   CrowdPose ``head``, H36M ``head``);
 * ``left_big_toe``, ``left_small_toe``, ``left_heel`` and the right ones;
+* MediaPipe's BlazePose points keep MediaPipe's names (``left_eye_inner``, ``mouth_left``,
+  ``left_foot_index`` ...); its COCO points, heels and foot tips are on the human's
+  ``mediapipe33`` map, its hand points (pinky, index, thumb) on no map;
 * points no figure carries keep a layout-specific name (``h36m_spine`` ...).
 
 Whole-body layouts (Halpe-136, COCO-WholeBody-133) keep their body part only: the
@@ -81,6 +84,18 @@ H36M_17 = (
     "left_wrist", "right_shoulder", "right_elbow", "right_wrist",
 )
 
+# MediaPipe Pose (BlazePose GHUM, 33 landmarks), in its PoseLandmark order; the names are
+# MediaPipe's own, lower case. Its heel is the back of the heel; its foot index the tip of the
+# foot (between the big and second toe), which is not OpenPose's big toe.
+MEDIAPIPE_33 = (
+    "nose", "left_eye_inner", "left_eye", "left_eye_outer", "right_eye_inner", "right_eye",
+    "right_eye_outer", "left_ear", "right_ear", "mouth_left", "mouth_right", "left_shoulder",
+    "right_shoulder", "left_elbow", "right_elbow", "left_wrist", "right_wrist", "left_pinky",
+    "right_pinky", "left_index", "right_index", "left_thumb", "right_thumb", "left_hip", "right_hip",
+    "left_knee", "right_knee", "left_ankle", "right_ankle", "left_heel", "right_heel",
+    "left_foot_index", "right_foot_index",
+)
+
 
 @dataclass(frozen=True)
 class Layout:
@@ -134,6 +149,8 @@ LAYOUTS: dict[str, Layout] = {
                ("root", "right_hip", "right_knee", "right_foot", "left_hip", "left_knee", "left_foot",
                 "spine", "thorax", "neck_base", "head", "left_shoulder", "left_elbow", "left_wrist",
                 "right_shoulder", "right_elbow", "right_wrist")),
+        Layout("mediapipe33", "MediaPipe Pose (BlazePose, 33 landmarks)", 33, MEDIAPIPE_33, "mediapipe33",
+               ("mediapipe", "blazepose", "blazepose33", "mediapipe_33"), tuple(n.upper() for n in MEDIAPIPE_33)),
     )
 }
 
