@@ -7,44 +7,18 @@ import sys
 import time
 import warnings
 
+from .arguments import (
+    add_pose_prior_argument,
+    add_reconstruct_options,
+    detector_options,
+    figure_from_args,
+    pose_prior_weights,  # noqa: F401 - part of the command line's face (workbench, tests)
+    reconstruct_from_args,
+    weights_kwargs,
+)
 from .errors import PinreconError
 
 __all__ = ["main"]
-
-
-def _figure_from_args(args, tracks=None):
-    from pathlib import Path
-
-    from .errors import InputError
-    from .figure import Figure
-    from .layouts import human_keypoint_maps
-
-    spec = args.figure
-    if spec == "human":
-        fig = Figure.human(args.keypoints) if args.keypoints else Figure.human("auto", tracks=tracks or [])
-    elif spec.lower().endswith(".bvh") or spec.lower().endswith(".urdf") or Path(spec).is_file():
-        if args.keypoints and not Path(args.keypoints).is_file():
-            raise InputError(
-                f"no such keypoint-map file {args.keypoints!r} (the bundled maps "
-                f"{', '.join(human_keypoint_maps())} are for --figure human)",
-                field="--keypoints",
-            )
-        if spec.lower().endswith(".bvh"):
-            fig = Figure.from_bvh(spec, args.length_scale, lock=args.lock or ())
-            if args.keypoints:
-                fig = fig.with_keypoints(args.keypoints)
-        else:
-            fig = Figure.from_urdf(spec, args.keypoints)
-    else:
-        hint = " (did you mean 'human'?)" if spec.lower() == "human" else ""
-        raise InputError(
-            f"{spec!r} is not 'human' and no such file{hint}: valid choices are 'human', a URDF file (.urdf) "
-            "or a BVH file (.bvh)",
-            field="--figure",
-        )
-    if getattr(args, "limits", None):
-        fig = fig.with_limits(args.limits)
-    return fig
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None):
@@ -104,58 +78,10 @@ class _Progress:
             self.dirty = False
 
 
-def _cameras_for_tracks(camera_files, tracks_files):
-    """The cameras of every ``--camera`` file, in order (a file's cameras in the file's
-    order), one per ``--tracks``; a mismatch is one clear error listing them."""
-    from .errors import InputError
-    from .io.calibration import load_cameras
-
-    cams = [c for path in camera_files for c in load_cameras(path)]
-    if len(cams) != len(tracks_files):
-        listed = ", ".join(f"{c.name!r}" for c in cams)
-        raise InputError(
-            f"{len(tracks_files)} --tracks but the --camera files hold {len(cams)} cameras ({listed}): give one "
-            "--tracks per camera, in this order",
-            field="--camera",
-        )
-    return cams
-
-
 def cmd_reconstruct(args) -> int:
-    from .problem import Weights
-    from .reconstruct import reconstruct
-    from .solver import SolverOptions
-    from .tracks import load_keyframes, load_tracks
-
-    if args.stability is not None and args.stability < 1:
-        from .errors import InputError
-
-        raise InputError(f"must be a number of solves, at least 1; got {args.stability}", field="--stability")
-    auto = _auto_camera_from_args(args)
-    cams = [auto] if auto is not None else _cameras_for_tracks(args.camera, args.tracks)
-    tracks = [load_tracks(path, fps=args.fps, person=args.person, layout=args.layout) for path in args.tracks]
-    fig = _figure_from_args(args, tracks)
-    if len(tracks) == 1:  # one camera: plain arguments, as the Python API takes them
-        tracks, cam = tracks[0], cams[0]
-    else:
-        cam = cams
-    kf = load_keyframes(args.keyframes) if args.keyframes else None
-    wkw = _weights_kwargs(args, ("sigma_px", "acc_root_translation", "acc_root_rotation", "acc_joints", "sigma_limits",
-                                 "loss"))
-    opts = SolverOptions(max_iterations=args.max_iterations)
     progress = _Progress(args.quiet, args.max_iterations)
-    kw = {"fps_out": args.fps_out, "weights": Weights(**wkw), "options": opts, "seed": args.seed,
-          "calibrate": args.calibrate, "window": args.window, **_feet_from_args(args)}
-    res = reconstruct(fig, tracks, cam, kf, callback=progress, skip=args.skip, progress=progress.stage, **kw)
+    res = reconstruct_from_args(args, callback=progress)
     progress.close()
-    if args.stability:
-        from .stability import stability
-
-        if not args.quiet:
-            print(f"pinrecon: solving again on {args.stability} copies of the tracks with 1 % of the detections "
-                  "left out (--stability)", file=sys.stderr)
-        res.extras.update(stability(fig, tracks, cam, kf, result=res, runs=args.stability, n_jobs=args.jobs,
-                                    **kw).to_extras())
     return _save_and_report(res, args)
 
 
@@ -191,7 +117,7 @@ def cmd_fit_markers(args) -> int:
                       "BODY_25); rename them in the file to use them", stacklevel=2)
         keep = [i for i, n in enumerate(markers.names) if n not in POSE2SIM_AMBIGUOUS]
         markers = Markers(markers.points[:, keep], [markers.names[i] for i in keep], markers.fps, markers.source)
-    fig = _figure_from_args(args, [markers])  # 'human': the bundled map carrying most of the markers' names
+    fig = figure_from_args(args, [markers])  # 'human': the bundled map carrying most of the markers' names
     kf = load_keyframes(args.keyframes) if args.keyframes else None
     progress = _Progress(args.quiet, args.max_iterations)
     res = reconstruct_markers(fig, markers, kf, fps_out=args.fps_out, weights=Weights(sigma_markers_m=args.sigma_m),
@@ -199,24 +125,6 @@ def cmd_fit_markers(args) -> int:
                               calibrate=args.calibrate)
     progress.close()
     return _save_and_report(res, args)
-
-
-def _auto_camera_from_args(args):
-    """The :class:`~pinrecon.starts.camera_auto.AutoCamera` of ``--camera auto`` (or
-    ``auto:orthographic``), ``None`` for camera files; auto with several --tracks, or
-    --image-size/--fov without auto, is one clear error."""
-    from .errors import InputError
-    from .starts.camera_auto import DEFAULT_FOV_DEG, AutoCamera
-
-    specs = [c for c in args.camera if c.split(":")[0] == "auto"]
-    if not specs:
-        if args.image_size is not None or args.fov is not None:
-            raise InputError("--image-size and --fov are for --camera auto", field="--camera")
-        return None
-    if len(args.camera) != 1 or len(args.tracks) != 1:
-        raise InputError("--camera auto is for one --tracks and no other --camera", field="--camera")
-    proj = specs[0].split(":", 1)[1] if ":" in specs[0] else "perspective"
-    return AutoCamera(args.image_size, proj, DEFAULT_FOV_DEG if args.fov is None else args.fov)
 
 
 def _save_cameras(res, path) -> list[str]:
@@ -234,22 +142,6 @@ def _save_cameras(res, path) -> list[str]:
         cam.save(p)
         out.append(str(p))
     return out
-
-
-def _feet_from_args(args) -> dict:
-    """``floor`` and ``contact`` for :func:`pinrecon.reconstruct` from ``--floor`` / ``--contact``."""
-    floor, contact = getattr(args, "floor", None), getattr(args, "contact", None)
-    if contact not in (None, "auto", "none"):
-        from .io.jsonfile import read_json
-
-        contact = read_json(contact)
-        if not isinstance(contact, dict):
-            from .errors import InputError
-
-            raise InputError("expected an object {foot keypoint: [[first, last], ...]}", file=args.contact)
-    elif contact == "none":
-        contact = False
-    return {"floor": floor, "contact": contact}
 
 
 def cmd_demo(args) -> int:
@@ -332,8 +224,8 @@ def cmd_export(args) -> int:
 def cmd_edit(args) -> int:
     from .workbench.app import edit_from_args
 
-    return edit_from_args(args, _figure_from_args(args) if args.figure else None,
-                          weights=_weights_kwargs(args, ("sigma_px", "loss")))
+    return edit_from_args(args, figure_from_args(args) if args.figure else None,
+                          weights=weights_kwargs(args, ("sigma_px", "loss")))
 
 
 def cmd_links(args) -> int:
@@ -350,18 +242,11 @@ def cmd_links(args) -> int:
     return 0
 
 
-def _detector_options(parser) -> None:
-    from .layouts import LAYOUTS
-
-    parser.add_argument(
-        "--layout",
-        help="the detector's point layout: " + ", ".join(LAYOUTS) + " (default: from the file, or by geometry)",
-    )
-    parser.add_argument(
-        "--person",
-        help="who to follow in detector output with several people: an index in the first frame with people, "
-        "a box x1,y1,x2,y2 around them in the first frame they appear, or 'largest' (each frame's most "
-        "prominent person, no following); default: the most prominent person of the first frame",
+def _tracks_option(r) -> None:
+    r.add_argument(
+        "--tracks", required=True, action="append",
+        help="tracks JSON/NPZ, OpenPose folder or COCO JSON; repeat it for several cameras (one per camera, "
+        "in the cameras' order; every camera's tracks start at the same instant)",
     )
 
 
@@ -376,69 +261,9 @@ def build_parser() -> argparse.ArgumentParser:
     register_all(sub)
 
     r = sub.add_parser("reconstruct", help="batch-reconstruct a motion from 2D tracks")
-    r.add_argument("--figure", required=True, help="'human', a URDF file, or a BVH file (its skeleton)")
-    r.add_argument(
-        "--keypoints",
-        help="keypoint map JSON, or for 'human' a bundled map: coco17, body25, body25b, halpe26, joints "
-        "(default: the map of the tracks' detector layout)",
-    )
-    r.add_argument("--length-scale", type=float, default=1.0, help="metres per BVH unit (CMU: 0.056444)")
-    r.add_argument("--lock", nargs="*", help="BVH joints to weld (zero rotation)")
-    r.add_argument(
-        "--tracks", required=True, action="append",
-        help="tracks JSON/NPZ, OpenPose folder or COCO JSON; repeat it for several cameras (one per camera, "
-        "in the cameras' order; every camera's tracks start at the same instant)",
-    )
-    r.add_argument("--fps", type=float, help="frame rate of OpenPose/COCO tracks")
-    _detector_options(r)
-    r.add_argument(
-        "--camera", required=True, action="append",
-        help="camera or calibration file: pinrecon camera JSON, Pose2Sim/Sports2D TOML, OpenCV YAML/XML/JSON; "
-        "repeat it for several cameras. Cameras pair with --tracks in order: a file holding several cameras "
-        "(a Pose2Sim TOML) gives them in the file's order, so give its cameras' --tracks in that order. "
-        "'auto' (one --tracks, no calibration): a perspective camera with the principal point at the image "
-        "centre (--image-size), the focal length from a 60 degree field of view (--fov) refined in the solve, "
-        "the world placed at the camera unless point keyframes give its pose; 'auto:orthographic' likewise",
-    )
-    r.add_argument("--image-size", type=float, nargs=2, metavar=("W", "H"),
-                   help="image width and height in pixels, for --camera auto")
-    r.add_argument("--fov", type=float, help="starting horizontal field of view of --camera auto, degrees (default 60)")
+    add_reconstruct_options(r, inputs=_tracks_option)
     r.add_argument("--save-camera", metavar="FILE.json",
                    help="write the (fitted) camera as a pinrecon camera JSON, for reuse with --camera FILE.json")
-    r.add_argument("--keyframes", help="keyframes JSON")
-    r.add_argument("--fps-out", type=float, help="reconstruction rate (integer multiple of the tracks' rate)")
-    r.add_argument("--seed", choices=["auto", "rest", "keyframes", "planarity", "hypotheses"],
-                   help="the start (default auto: the multi-hypothesis start when keyframes are absent or sparse, "
-                   "the keyframe start when they are dense)")
-    r.add_argument("--limits", help="joint limits to apply to the figure: a limits JSON, or a CMU ASF skeleton "
-                   "(its limits onto a CMU BVH figure)")
-    r.add_argument("--sigma-px", type=float, help="2D noise, pixels (default 2)")
-    r.add_argument("--loss", choices=["auto", "l2", "huber", "cauchy"],
-                   help="measurement loss (default auto: cauchy when the tracks carry confidences, else l2)")
-    r.add_argument("--acc-root-translation", type=float, help="smoothing: root acceleration sd, m/s^2")
-    r.add_argument("--acc-root-rotation", type=float, help="smoothing: root angular acceleration sd, rad/s^2")
-    r.add_argument("--acc-joints", type=float, help="smoothing: joint acceleration sd, rad/s^2")
-    r.add_argument("--sigma-limits", type=float, help="joint-limit barrier sd, rad")
-    add_pose_prior_argument(r)
-    r.add_argument("--max-iterations", type=int, default=100)
-    r.add_argument("--skip", nargs="+", default=(), metavar="STAGE",
-                   help="switch stages off by name: prior, turns, mirrors, faults, focal, feet (the start and the "
-                   "solve always run; the summary lists every stage with its time and what it changed)")
-    r.add_argument("--window", type=int, help="solve in overlapping windows of this many frames, in bounded memory "
-                   "(default: windows of 2000 frames past 10000 frames; 0: one batch solve)")
-    r.add_argument("--floor", help="feet on the ground: 'auto' (estimated under the feet; the default for "
-                   "--figure human with a tracked ankle), 'none' (off), 'y=0' / 'z=0', or "
-                   "'nx,ny,nz,d' (the plane n.p = d, n up); adds the contact rows (see --contact)")
-    r.add_argument("--contact", help="foot contacts: 'auto' (from low height and speed; the default with --floor), "
-                   "'none' (only keep feet above the floor), or a JSON file {foot keypoint: [[first, last], ...]} "
-                   "of tracks frames")
-    r.add_argument(
-        "--calibrate", choices=["none", "lengths", "camera", "lengths+camera"],
-        help="unknowns besides the motion: the figure's segment lengths (scale factors, 10 %% prior), the camera's "
-        "focal length (or orthographic scale), or both (default: lengths for --figure human with 3D point "
-        "keyframes or one given camera, the limb lengths then measured from the tracks first; else none; "
-        "plus camera with --camera auto)",
-    )
     r.add_argument("--save-figure", metavar="FILE.urdf",
                    help="write the (calibrated) figure's URDF there and its keypoint map next to it "
                    "(FILE.keypoints.json), for reuse with --figure FILE.urdf --keypoints FILE.keypoints.json")
@@ -537,7 +362,7 @@ def build_parser() -> argparse.ArgumentParser:
     li = sub.add_parser("links", help="discover rigid links and hinges in 2D tracks (planarity)")
     li.add_argument("tracks", help="tracks JSON/NPZ, OpenPose folder or COCO JSON")
     li.add_argument("--fps", type=float, help="frame rate of OpenPose/COCO tracks")
-    _detector_options(li)
+    detector_options(li)
     li.add_argument("--quiet", action="store_true", help="no warnings")
     li.add_argument("--camera", help="orthographic camera JSON, to give lengths in metres")
     li.add_argument("--scale", type=float, help="pixels per metre, to give lengths in metres")
@@ -545,56 +370,6 @@ def build_parser() -> argparse.ArgumentParser:
     li.add_argument("--all", action="store_true", help="list every passing triple and link")
     li.set_defaults(func=cmd_links)
     return p
-
-
-def _pose_prior(text: str):
-    if text.strip().lower() in ("none", "off"):
-        return None
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive number or 'none', got {text!r}") from None
-    if not 0 < v < float("inf"):
-        raise argparse.ArgumentTypeError(f"expected a positive number or 'none', got {text!r}")
-    return v
-
-
-def add_pose_prior_argument(parser) -> None:
-    parser.add_argument("--pose-prior", type=_pose_prior, default=argparse.SUPPRESS, metavar="SCALE|none",
-                        help="the generic human's pose prior from motion capture (a joint Gaussian): its "
-                        "standard deviations times SCALE (default 2), or none (a weak rest-pose prior, as "
-                        "other figures)")
-    parser.add_argument("--pose-prior-loss", choices=("huber", "cauchy"), default=argparse.SUPPRESS,
-                        help="the pose prior's robust loss beyond a Mahalanobis distance of 2 (huber, the "
-                        "default) or 3 (cauchy: better for motion unlike walking and running, such as dance, "
-                        "with a given camera; worse for --camera auto's focal length)")
-    parser.add_argument("--pose-prior-model", default=argparse.SUPPRESS, metavar="NAME|FILE",
-                        help="which learned pose prior: auto (the default: the generic human's for --figure human, "
-                        "solved again with its broader mixture when it does not know more than half of the "
-                        "poses, a fifth with one camera and no keyframes; none for other figures), none, a "
-                        "bundled one (human_pose: the human's, kept whatever the clip; human_pose_mixture: its "
-                        "mixture of Gaussians over more clips; "
-                        "cmu_bvh_pose: a figure made from a CMU BVH file, for detector tracks) or a JSON file "
-                        "made by tools/fit_pose_prior.py")
-
-
-def _weights_kwargs(args, names) -> dict:
-    """The :class:`~pinrecon.Weights` keywords the command line gave: ``names`` (those not
-    None) and the pose-prior flags (:func:`pose_prior_weights`)."""
-    out = {k: getattr(args, k) for k in names if getattr(args, k, None) is not None}
-    out.update(pose_prior_weights(args))
-    return out
-
-
-def pose_prior_weights(args) -> dict:
-    """The :class:`~pinrecon.Weights` keywords of ``--pose-prior``, ``--pose-prior-loss`` and
-    ``--pose-prior-model`` (those given)."""
-    out = {"pose_prior": args.pose_prior} if hasattr(args, "pose_prior") else {}
-    if hasattr(args, "pose_prior_model"):
-        out["pose_prior_model"] = args.pose_prior_model
-    if hasattr(args, "pose_prior_loss"):
-        out.update(pose_prior_loss=args.pose_prior_loss, pose_prior_k=3.0 if args.pose_prior_loss == "cauchy" else 2.0)
-    return out
 
 
 def main(argv=None) -> int:
