@@ -1,0 +1,31 @@
+"""Video in: frames through OpenCV, MediaPipe Pose per frame, :class:`~pinrecon.Tracks` out.
+
+The optional ``video`` extra (``pip install "pinrecon[video]"``: MediaPipe 0.10.14, OpenCV,
+tqdm)::
+
+    from pinrecon.video import track_video
+    tracks = track_video("clip.mp4", progress=True)   # 33 landmarks in pixels, visibility,
+    tracks.lifted                                     # and MediaPipe's 3D (pinrecon.lifted.Lifted)
+    tracks.save("tracks.json")
+
+``pinrecon track VIDEO`` and ``pinrecon video VIDEO... --out DIR`` (which also reconstructs
+and writes the exports and the overlay video, :func:`pinrecon.viz.overlay.write_overlay`)
+call these. Without the extra, the functions raise :class:`MissingVideoExtraError` naming it.
+"""
+
+from .frames import EXTRA_HINT, MissingVideoExtraError, VideoInfo, iter_frames, require_cv2, video_info
+from .mediapipe_pose import MEDIAPIPE_VERSION, MediaPipePose, track_video
+from .progress import FrameProgress
+
+__all__ = [
+    "track_video",
+    "video_info",
+    "iter_frames",
+    "VideoInfo",
+    "MediaPipePose",
+    "MissingVideoExtraError",
+    "FrameProgress",
+    "require_cv2",
+    "EXTRA_HINT",
+    "MEDIAPIPE_VERSION",
+]

@@ -1,0 +1,101 @@
+"""Video files through OpenCV: what a video is (size, rate, length) and its frames, one by one.
+
+OpenCV (``cv2``) is the optional ``video`` extra's (``pip install "pinrecon[video]"``);
+without it :func:`require_cv2` raises :class:`MissingVideoExtraError`, one line naming the
+extra. A file OpenCV cannot decode, or one without frames, is one
+:class:`~pinrecon.errors.InputError` naming the file.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError, PinreconError
+
+__all__ = ["MissingVideoExtraError", "VideoInfo", "require_cv2", "video_info", "iter_frames", "EXTRA_HINT"]
+
+EXTRA_HINT = 'pip install "pinrecon[video]"'
+
+
+class MissingVideoExtraError(PinreconError, ImportError):
+    """A package of the optional ``video`` extra (OpenCV, MediaPipe) is not installed."""
+
+
+def require_cv2():
+    """The ``cv2`` module, or :class:`MissingVideoExtraError` naming the extra."""
+    try:
+        import cv2
+    except ImportError as exc:
+        raise MissingVideoExtraError(f"reading and writing video needs OpenCV ({exc}): {EXTRA_HINT}") from None
+    return cv2
+
+
+@dataclass(frozen=True)
+class VideoInfo:
+    """A video's file, frame rate, frame size in pixels and frame count (as its container says;
+    :func:`iter_frames` yields what decodes)."""
+
+    path: str
+    fps: float
+    width: int
+    height: int
+    frames: int
+
+    @property
+    def image_size(self) -> tuple[int, int]:
+        """``(width, height)`` in pixels, as ``--image-size`` takes it."""
+        return self.width, self.height
+
+
+def _open(path):
+    cv2 = require_cv2()
+    path = Path(path)
+    if not path.exists():
+        raise InputError("file not found", file=path)
+    if path.is_dir():
+        raise InputError("is a folder, not a video file", file=path)
+    cap = cv2.VideoCapture(str(path))
+    if not cap.isOpened():
+        cap.release()
+        raise InputError("not a video OpenCV can read (an MP4, MOV, AVI ... file)", file=path)
+    return cv2, cap
+
+
+def video_info(path: str | os.PathLike, *, fps: float | None = None) -> VideoInfo:
+    """Size, rate and length of the video at ``path``; ``fps`` replaces a container's missing
+    or wrong rate. A file that is not a readable video, has no frame, or stores no rate (and
+    ``fps`` is not given) raises :class:`~pinrecon.errors.InputError`."""
+    cv2, cap = _open(path)
+    try:
+        ok, frame = cap.read()
+        if not ok or frame is None:
+            raise InputError("not a video OpenCV can read: no frame decodes", file=path)
+        rate = float(cap.get(cv2.CAP_PROP_FPS) or 0.0) if fps is None else float(fps)
+        count = int(cap.get(cv2.CAP_PROP_FRAME_COUNT) or 0)
+    finally:
+        cap.release()
+    if not (np.isfinite(rate) and 0 < rate < 1e4):
+        raise InputError(f"the video stores no usable frame rate ({rate:g}): give it (--fps)", file=path, field="fps")
+    h, w = frame.shape[:2]
+    return VideoInfo(str(path), rate, int(w), int(h), count)
+
+
+def iter_frames(path: str | os.PathLike, max_frames: int | None = None) -> Iterator[np.ndarray]:
+    """The video's frames in order, each an (H, W, 3) uint8 BGR array (OpenCV's order),
+    at most ``max_frames``."""
+    _, cap = _open(path)
+    try:
+        n = 0
+        while max_frames is None or n < max_frames:
+            ok, frame = cap.read()
+            if not ok:
+                break
+            yield frame
+            n += 1
+    finally:
+        cap.release()

@@ -1,0 +1,166 @@
+"""MediaPipe Pose on a video: 2D landmarks, their visibility and MediaPipe's own 3D, as Tracks.
+
+MediaPipe's legacy Pose solution (``mediapipe==0.10.14``; BlazePose GHUM, the full model
+``model_complexity=1`` ships inside the wheel and runs offline) follows one person through
+the frames. Per frame and landmark (33, :data:`pinrecon.layouts.MEDIAPIPE_33`):
+
+* ``pose_landmarks``: x, y normalised by the image's width and height -> pixels (x W, y H);
+* ``visibility``: the model's likelihood that the landmark is visible -> the confidence;
+* ``pose_world_landmarks``: metres, origin at the hips' midpoint, y down, z toward the
+  camera negative (MediaPipe's convention) -> :class:`pinrecon.lifted.Lifted` with
+  ``frame="unknown"``: measured on Pose2Sim's balancing trial against its four-camera
+  triangulation (``bench/bench_video.py``), their axes are not the camera's, by a rotation
+  that changes with the pose (see ``docs/formats.md``).
+
+A frame where MediaPipe finds nobody is missing (NaN, confidence 0) in both.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import sys
+import warnings
+from collections.abc import Callable
+
+import numpy as np
+
+from ..layouts import MEDIAPIPE_33
+from ..lifted import Lifted
+from ..tracks import Tracks
+from .frames import EXTRA_HINT, MissingVideoExtraError, iter_frames, require_cv2, video_info
+from .progress import FrameProgress
+
+__all__ = ["track_video", "MediaPipePose", "MEDIAPIPE_VERSION"]
+
+#: the MediaPipe release whose legacy Pose solution this reads (its model is in the wheel)
+MEDIAPIPE_VERSION = "0.10.14"
+
+
+def _import_mediapipe():
+    # MediaPipe's C++ logs (glog, TensorFlow Lite) go to stderr unless told otherwise
+    os.environ.setdefault("GLOG_minloglevel", "2")
+    os.environ.setdefault("TF_CPP_MIN_LOG_LEVEL", "3")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        try:
+            import mediapipe as mp
+        except ImportError as exc:
+            raise MissingVideoExtraError(
+                f"tracking a video needs MediaPipe {MEDIAPIPE_VERSION} ({exc}): {EXTRA_HINT}") from None
+    solutions = getattr(mp, "solutions", None)
+    if solutions is None or not hasattr(solutions, "pose"):
+        raise MissingVideoExtraError(
+            f"this MediaPipe ({getattr(mp, '__version__', '?')}) has no legacy Pose solution "
+            f"(mp.solutions.pose): install MediaPipe {MEDIAPIPE_VERSION}: {EXTRA_HINT}")
+    return mp
+
+
+@contextlib.contextmanager
+def _quiet_native_stderr():
+    """MediaPipe's native code prints start-up notes (TensorFlow Lite's delegate, glog lines
+    that ignore ``GLOG_minloglevel``) straight to file descriptor 2: hide them while the
+    graph starts."""
+    try:
+        fd = sys.stderr.fileno()
+    except (AttributeError, OSError, ValueError):  # a replaced stderr (pytest's capture)
+        fd = 2
+    sys.stderr.flush()
+    try:
+        saved = os.dup(fd)
+        null = os.open(os.devnull, os.O_WRONLY)
+    except OSError:  # pragma: no cover - no descriptors to spare
+        yield
+        return
+    try:
+        os.dup2(null, fd)
+        yield
+    finally:
+        os.dup2(saved, fd)
+        os.close(saved)
+        os.close(null)
+
+
+class MediaPipePose:
+    """One MediaPipe Pose tracker over consecutive frames: ``detect(frame_bgr)`` ->
+    ``(uv_px (33, 2), visibility (33,), p_world_m (33, 3))``, NaN and 0 where nobody is found.
+
+    ``model_complexity``: 0 (lite), 1 (full, the default), 2 (heavy: MediaPipe downloads it
+    on first use). Close it (or use ``with``) to free the graph."""
+
+    def __init__(self, model_complexity: int = 1, *, static_image_mode: bool = False):
+        mp = _import_mediapipe()
+        self.cv2 = require_cv2()
+        with warnings.catch_warnings(), _quiet_native_stderr():
+            warnings.simplefilter("ignore")
+            self._pose = mp.solutions.pose.Pose(static_image_mode=static_image_mode,
+                                                model_complexity=model_complexity)
+        self._started = False
+
+    def detect(self, frame_bgr: np.ndarray):
+        h, w = frame_bgr.shape[:2]
+        rgb = self.cv2.cvtColor(frame_bgr, self.cv2.COLOR_BGR2RGB)
+        with warnings.catch_warnings(), (contextlib.nullcontext() if self._started else _quiet_native_stderr()):
+            warnings.simplefilter("ignore")  # protobuf's deprecation notes, per frame
+            res = self._pose.process(rgb)
+        self._started = True
+        n = len(MEDIAPIPE_33)
+        if res.pose_landmarks is None:
+            return np.full((n, 2), np.nan), np.zeros(n), np.full((n, 3), np.nan)
+        lm = res.pose_landmarks.landmark
+        uv = np.array([(p.x * w, p.y * h) for p in lm], float)
+        vis = np.clip(np.array([p.visibility for p in lm], float), 0.0, 1.0)
+        if res.pose_world_landmarks is not None:
+            world = np.array([(p.x, p.y, p.z) for p in res.pose_world_landmarks.landmark], float)
+        else:  # pragma: no cover - MediaPipe gives both or neither
+            world = np.full((n, 3), np.nan)
+        return uv, vis, world
+
+    def close(self):
+        self._pose.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+        return False
+
+
+def track_video(
+    path: str | os.PathLike,
+    *,
+    fps: float | None = None,
+    max_frames: int | None = None,
+    model_complexity: int = 1,
+    progress: bool = False,
+    on_frame: Callable[[int, np.ndarray], None] | None = None,
+) -> Tracks:
+    """Run MediaPipe Pose over the video at ``path``: :class:`~pinrecon.Tracks` of its 33
+    landmarks in pixels (layout ``"mediapipe33"``, confidence = visibility, ``fps`` the
+    video's unless given) with ``lifted`` = MediaPipe's world landmarks
+    (:class:`~pinrecon.lifted.Lifted`, metres, ``frame="unknown"``, ``source="mediapipe"``).
+
+    ``max_frames`` stops early; ``progress`` draws a bar over the frames on stderr;
+    ``on_frame(t, frame_bgr)`` sees each decoded frame (to reuse the decode). A file that is
+    not a video raises :class:`~pinrecon.errors.InputError`; a missing extra
+    :class:`~pinrecon.video.MissingVideoExtraError`.
+    """
+    info = video_info(path, fps=fps)
+    total = info.frames if max_frames is None else min(info.frames or max_frames, max_frames)
+    uv, vis, world = [], [], []
+    name = os.path.basename(str(path))
+    with MediaPipePose(model_complexity) as pose, FrameProgress(total, f"track {name}", enabled=progress) as bar:
+        for t, frame in enumerate(iter_frames(path, max_frames)):
+            a, b, c = pose.detect(frame)
+            uv.append(a)
+            vis.append(b)
+            world.append(c)
+            if on_frame is not None:
+                on_frame(t, frame)
+            bar.update()
+    names = list(MEDIAPIPE_33)
+    lifted = Lifted(np.array(world).reshape(-1, len(names), 3), names, np.array(vis).reshape(-1, len(names)),
+                    frame="unknown", source="mediapipe")
+    return Tracks(np.array(uv).reshape(-1, len(names), 2), names, info.fps, lifted.confidence.copy(), str(path),
+                  "mediapipe33", lifted)

@@ -1,0 +1,134 @@
+"""The overlay video: the reconstruction drawn over the frames it was made from, a second view beside.
+
+Left panel: the input video's frames with the reconstructed skeleton reprojected through the
+result's (fitted) camera; right panel: the same skeleton from the side (the camera turned
+90 degrees about the world's up axis, orthographic, one fixed scale for the clip). Written
+with OpenCV's ``VideoWriter`` (MPEG-4 Part 2, ``mp4v``): the optional ``video`` extra.
+
+Colours (BGR), fixed so a picture or a test can find them: the figure's left side
+:data:`LEFT_BGR`, right side :data:`RIGHT_BGR`, the middle :data:`CENTRE_BGR`, the keypoints
+as filled dots of :data:`JOINT_BGR`; the 2D detections (when given) as white rings.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+from ..io.atomic import atomic_path
+from ..video.frames import iter_frames, require_cv2, video_info
+from ..video.progress import FrameProgress
+from ._common import as_motion, second_view_camera, skeleton, skeleton_points
+
+__all__ = ["write_overlay", "LEFT_BGR", "RIGHT_BGR", "CENTRE_BGR", "JOINT_BGR", "overlay_scale"]
+
+LEFT_BGR = (255, 140, 0)  # azure: the figure's left
+RIGHT_BGR = (40, 40, 230)  # red: its right
+CENTRE_BGR = (0, 220, 255)  # yellow: spine, head, hubs
+JOINT_BGR = (255, 0, 255)  # magenta keypoint dots
+DETECTION_BGR = (255, 255, 255)
+PANEL_BGR = (40, 40, 40)
+
+
+def overlay_scale(width: int, height: int, max_height: int | None) -> float:
+    """The factor from the input video's pixels to the overlay's (at most ``max_height``
+    rows, never enlarged; sizes rounded to even numbers, as MPEG-4 wants)."""
+    if max_height is None or height <= max_height:
+        return 1.0
+    return max_height / height
+
+
+def _even(x: float) -> int:
+    return max(2, int(round(x / 2)) * 2)
+
+
+def write_overlay(
+    result,
+    video: str | os.PathLike,
+    out_path: str | os.PathLike,
+    *,
+    camera_index: int = 0,
+    tracks=None,
+    max_height: int | None = 960,
+    second_view: float | None = None,
+    progress: bool = False,
+) -> Path:
+    """Write the overlay video of ``result`` over ``video`` to ``out_path`` (``.mp4``).
+
+    ``result`` : a :class:`~pinrecon.Result` (or a result NPZ path); ``camera_index`` picks
+    which of its cameras filmed ``video`` (several-camera solves). ``tracks`` : that camera's
+    :class:`~pinrecon.Tracks`, drawn as white rings. The video's frame ``t`` shows the result
+    at the nearest time ``t / fps``. ``max_height`` : the overlay's height in pixels (the
+    input is scaled down to it, never up; ``None``: the input's). ``second_view`` : the side
+    panel's angle about the up axis, degrees (default 90). Returns the path written
+    (atomically); the file holds one frame per input frame, ``2 W x H`` pixels after scaling.
+    """
+    cv2 = require_cv2()
+    motion = as_motion(result)
+    cams = list(getattr(result, "cameras", None) or [getattr(result, "camera", None)])
+    if not 0 <= camera_index < len(cams) or cams[camera_index] is None:
+        raise InputError(f"the result has {len(cams)} camera(s); no camera {camera_index}", field="camera_index")
+    cam = cams[camera_index]
+    info = video_info(video)
+    s = overlay_scale(info.width, info.height, max_height)
+    W, H = _even(info.width * s), _even(info.height * s)
+    sx, sy = W / info.width, H / info.height
+
+    sk = skeleton(motion.figure)
+    P = skeleton_points(motion, sk, np.arange(len(motion.times)))  # (T, K + hubs, 3)
+    uv_cam = cam.project(P) * [sx, sy]
+    side = second_view_camera(cam, second_view)
+    uv_side = side.project(P)
+    ok = np.all(np.isfinite(uv_side), axis=2)
+    lo, hi = np.nanmin(uv_side[ok], axis=0), np.nanmax(uv_side[ok], axis=0)
+    span = max(float(np.max(hi - lo)), 1e-6)
+    zoom = 0.85 * min(W, H) / span
+    uv_side = (uv_side - (lo + hi) / 2) * zoom + [W / 2, H / 2]
+    colours = [LEFT_BGR if c == "L" else RIGHT_BGR if c == "R" else CENTRE_BGR for c in sk.side]
+    thick = max(2, int(round(H / 240)))
+    radius = max(3, int(round(H / 160)))
+    det = None
+    if tracks is not None:
+        det = np.asarray(tracks.points, float) * [sx, sy]
+        det_ok = tracks.observed
+
+    def draw(img, uv):
+        pts = np.round(uv).astype(int)
+        good = np.all(np.isfinite(uv), axis=1)
+        for (a, b), col in zip(sk.edges, colours):
+            if good[a] and good[b]:
+                cv2.line(img, tuple(pts[a]), tuple(pts[b]), col, thick, cv2.LINE_AA)
+        for k in range(sk.K):
+            if good[k]:
+                cv2.circle(img, tuple(pts[k]), radius, JOINT_BGR, -1, cv2.LINE_AA)
+
+    out_path = Path(out_path)
+    n_frames = info.frames
+    with atomic_path(out_path) as tmp:
+        writer = cv2.VideoWriter(str(tmp), cv2.VideoWriter_fourcc(*"mp4v"), info.fps, (2 * W, H))
+        if not writer.isOpened():
+            raise InputError("OpenCV cannot write an MPEG-4 video there", file=out_path)
+        try:
+            with FrameProgress(n_frames, f"overlay {out_path.name}", enabled=progress) as bar:
+                for t, frame in enumerate(iter_frames(video)):
+                    f = motion.frame_at(t / info.fps)
+                    left = cv2.resize(frame, (W, H), interpolation=cv2.INTER_AREA) if (W, H) != frame.shape[1::-1] \
+                        else frame.copy()
+                    if det is not None and t < len(det):
+                        for k in np.flatnonzero(det_ok[t]):
+                            cv2.circle(left, tuple(np.round(det[t, k]).astype(int)), radius + 2, DETECTION_BGR, 1,
+                                       cv2.LINE_AA)
+                    draw(left, uv_cam[f])
+                    right = np.full((H, W, 3), PANEL_BGR, np.uint8)
+                    draw(right, uv_side[f])
+                    label = f"side view  t={motion.times[f]:.2f}s"
+                    cv2.putText(right, label, (10, 10 + 2 * radius + 10), cv2.FONT_HERSHEY_SIMPLEX,
+                                max(0.4, H / 1600), (230, 230, 230), 1, cv2.LINE_AA)
+                    writer.write(np.concatenate([left, right], axis=1))
+                    bar.update()
+        finally:
+            writer.release()
+    return out_path
