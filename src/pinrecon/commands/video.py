@@ -1,0 +1,174 @@
+"""``pinrecon video VIDEO... --out DIR``: from video files to 3D motion, exports and an overlay video.
+
+One call runs, per video, MediaPipe Pose (``pinrecon track``: 2D landmarks, visibility, its
+3D world landmarks as lifted cues), then one reconstruction of the generic human (``--figure``
+and every option of ``pinrecon reconstruct``: the same code, :mod:`pinrecon.arguments`), with
+a camera estimated from the video (``--camera auto``, the default) or a calibration
+(``--calibration Calib.toml``: several videos are several cameras of one solve, in the
+file's camera order). Into ``DIR``: ``tracks.json`` (``tracks_<video>.json`` per video with
+several), ``result.npz``, ``motion.bvh``, ``motion.csv``, ``motion.trc``, ``plots/`` and
+``overlay.mp4`` (``overlay_<video>.mp4``): the skeleton drawn over the input frames with a
+side view beside. Every output is checked writable and every video readable before the work
+starts.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+import warnings
+from pathlib import Path
+
+from ..errors import InputError
+from .track import FPS_HELP, add_video_options, check_video_options, check_writable
+
+__all__ = ["register", "cmd_video", "run_video"]
+
+
+class _SolveLine:
+    """The solver's progress on stderr, one line per 10 iterations."""
+
+    def __init__(self, quiet: bool):
+        self.quiet, self.t0 = quiet, time.perf_counter()
+
+    def __call__(self, rep):
+        if not self.quiet and (rep.iteration == 1 or rep.iteration % 10 == 0):
+            print(f"solve: iteration {rep.iteration:3d}  cost {rep.cost:.6g}  {time.perf_counter() - self.t0:5.1f}s",
+                  file=sys.stderr, flush=True)
+
+
+def _outputs(out: Path, videos: list[str]) -> dict:
+    stems = [Path(v).stem for v in videos]
+    if len(set(stems)) != len(stems):
+        stems = [f"{i + 1}_{s}" for i, s in enumerate(stems)]
+    one = len(videos) == 1
+    return {
+        "tracks": [out / ("tracks.json" if one else f"tracks_{s}.json") for s in stems],
+        "overlay": [out / ("overlay.mp4" if one else f"overlay_{s}.mp4") for s in stems],
+        "result": out / "result.npz",
+        "bvh": out / "motion.bvh",
+        "csv": out / "motion.csv",
+        "trc": out / "motion.trc",
+        "plots": out / "plots",
+    }
+
+
+def run_video(args) -> dict:
+    """The work of ``pinrecon video`` for its parsed ``args``; returns ``{"files": [...],
+    "frames": n, "seconds": s, "result": Result, "stages": {name: seconds}}``."""
+    from ..arguments import reconstruct_from_args
+    from ..video import track_video, video_info
+
+    check_video_options(args)
+    if args.calibration:
+        if args.camera:
+            raise InputError("give --calibration or --camera, not both", field="--calibration")
+        args.camera = [args.calibration]
+    if not args.camera:
+        args.camera = ["auto"]
+    auto = any(c.split(":")[0] == "auto" for c in args.camera)
+    if auto and len(args.videos) > 1:
+        raise InputError(f"{len(args.videos)} videos need their cameras' calibration (--calibration Calib.toml, one "
+                         "camera per video in the file's order); --camera auto is for one video", field="--calibration")
+    infos = [video_info(v, fps=args.fps) for v in args.videos]  # every video readable before any work
+    out = check_writable(args.out, folder=True)
+    files = _outputs(out, args.videos)
+    stages: dict[str, float] = {}
+    t_start = time.perf_counter()
+
+    tracks = []
+    for i, (video, info) in enumerate(zip(args.videos, infos)):
+        t0 = time.perf_counter()
+        tr = track_video(video, fps=args.fps, max_frames=args.max_frames, model_complexity=args.model_complexity,
+                         progress=not args.quiet)
+        tr.lifted.camera = i
+        tr.save(files["tracks"][i])
+        tracks.append(tr)
+        stages[f"track {Path(video).name}"] = time.perf_counter() - t0
+        if not tr.observed.any():
+            raise InputError("MediaPipe found no person in any frame", file=video)
+
+    t0 = time.perf_counter()
+    args.tracks = [str(p) for p in files["tracks"]]
+    if auto and args.image_size is None:
+        args.image_size = [float(infos[0].width), float(infos[0].height)]
+    args.fps = None
+    with warnings.catch_warnings():
+        if args.quiet:
+            warnings.simplefilter("ignore")
+        res = reconstruct_from_args(args, callback=_SolveLine(args.quiet))
+    res.save(files["result"])
+    written = [files["tracks"], [files["result"]]]
+    stages["reconstruct"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    from ..io.bvh_export import export_result
+
+    written.append(export_result(files["result"], bvh=files["bvh"], csv=files["csv"], trc=files["trc"]))
+    stages["exports"] = time.perf_counter() - t0
+
+    if not args.no_plots:
+        t0 = time.perf_counter()
+        try:
+            from ..viz import plot_result
+
+            written.append(plot_result(res, files["plots"], tracks=tracks if len(tracks) > 1 else tracks[0],
+                                       animation=False))
+        except ImportError as exc:  # the viz extra (matplotlib) is optional
+            print(f"pinrecon video: no plots ({exc})", file=sys.stderr)
+        stages["plots"] = time.perf_counter() - t0
+
+    if not args.no_overlay:
+        from ..viz.overlay import write_overlay
+
+        t0 = time.perf_counter()
+        for i, video in enumerate(args.videos):
+            written.append([write_overlay(res, video, files["overlay"][i], camera_index=i, tracks=tracks[i],
+                                          max_height=args.overlay_height, progress=not args.quiet)])
+        stages["overlay"] = time.perf_counter() - t0
+    seconds = time.perf_counter() - t_start
+    return {"files": [Path(f) for group in written for f in group], "frames": tracks[0].T, "seconds": seconds,
+            "result": res, "stages": stages}
+
+
+def cmd_video(args) -> int:
+    run = run_video(args)
+    if not args.quiet:
+        print(run["result"].summary(), file=sys.stderr)
+        n, s = run["frames"], run["seconds"]
+        where = ", ".join(f"{k} {v:.1f} s" for k, v in run["stages"].items())
+        print(f"pinrecon video: {n} frames in {s:.1f} s end to end ({n / max(s, 1e-9):.1f} frames/s: {where})",
+              file=sys.stderr)
+        for f in run["files"]:
+            print(f"wrote {f}", file=sys.stderr)
+    return 0
+
+
+def register(sub) -> None:
+    from ..arguments import add_reconstruct_options
+
+    p = sub.add_parser("video", help="from video files to 3D motion: track (MediaPipe Pose), reconstruct, and write "
+                       "the result, BVH, CSV, TRC, plots and an overlay video (the optional 'video' extra)")
+    p.add_argument("videos", nargs="+", metavar="VIDEO",
+                   help="video file(s); several need --calibration (one camera per video, in the file's order)")
+    p.add_argument("--out", required=True, help="output folder (created)")
+    p.add_argument("--calibration", metavar="CALIB.toml",
+                   help="the cameras' calibration (Pose2Sim/Sports2D TOML, OpenCV YAML/XML/JSON, pinrecon camera "
+                   "JSON): one camera per video, in order; default --camera auto (one video)")
+    add_video_options(p, fps=False)
+    add_reconstruct_options(p, camera_required=False)
+    for action in p._actions:  # argparse keeps its options there: the figure defaults to the generic human here
+        if action.dest == "figure":
+            action.required, action.default = False, "human"
+            action.help = "'human' (the default), a URDF file, or a BVH file (its skeleton)"
+        elif action.dest == "fps":
+            action.help = FPS_HELP
+        elif action.dest in ("layout", "person"):  # a tracks file's options: MediaPipe follows one person
+            action.help = argparse.SUPPRESS
+    p.add_argument("--overlay-height", type=int, default=960, metavar="PX",
+                   help="height of the overlay video in pixels (the input scaled down to it; default 960)")
+    p.add_argument("--no-overlay", action="store_true", help="skip the overlay video")
+    p.add_argument("--no-plots", action="store_true", help="skip the plots")
+    p.add_argument("--quiet", action="store_true", help="no progress output")
+    p.set_defaults(func=cmd_video)
