@@ -1,0 +1,184 @@
+"""Video in: ``pinrecon track`` and ``pinrecon video`` on a 10-frame cut of a real video.
+
+Ground truth independent of the code under test: OpenPose's BODY_25B detections of the same
+frames (Pose2Sim's balancing trial, camera 1), which pinrecon only reads. MediaPipe's 2D
+landmarks must lie near them; the overlay video's drawn keypoints must lie on them.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+import warnings
+
+import numpy as np
+import pytest
+from conftest import data_file, data_folder
+
+cv2 = pytest.importorskip("cv2")
+pytest.importorskip("mediapipe")
+
+import pinrecon as pr  # noqa: E402
+from pinrecon.cli import main  # noqa: E402
+from pinrecon.layouts import COCO_17  # noqa: E402
+from pinrecon.viz.overlay import JOINT_BGR  # noqa: E402
+
+N = 10
+BODY = list(COCO_17[5:])  # shoulders, elbows, wrists, hips, knees, ankles
+
+
+@pytest.fixture(scope="module")
+def cut(tmp_path_factory):
+    """The first N frames of camera 1's video, written again with OpenCV (mp4v)."""
+    src = data_file("pose2sim-balancing/videos/cam01.mp4")
+    path = tmp_path_factory.mktemp("video") / "cam01_cut.mp4"
+    cap = cv2.VideoCapture(str(src))
+    fps = cap.get(cv2.CAP_PROP_FPS)
+    frames = [cap.read()[1] for _ in range(N)]
+    cap.release()
+    h, w = frames[0].shape[:2]
+    out = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), fps, (w, h))
+    for f in frames:
+        out.write(f)
+    out.release()
+    return path
+
+
+@pytest.fixture(scope="module")
+def openpose():
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        tracks = pr.load_tracks(data_folder("pose2sim-balancing/pose/cam01_json"), fps=60.0)
+    return tracks.frames(0, N).select(BODY)
+
+
+@pytest.fixture(scope="module")
+def tracked(cut):
+    from pinrecon.video import track_video
+
+    return track_video(cut)
+
+
+def test_track_finds_the_openpose_points(tracked, openpose):
+    assert (tracked.T, tracked.K, tracked.fps, tracked.layout) == (N, 33, 60.0, "mediapipe33")
+    mp = tracked.select(BODY)
+    err = np.linalg.norm(mp.points - openpose.points, axis=2)  # pixels, 1080 x 1920 frames
+    seen = openpose.observed
+    assert seen.mean() > 0.9
+    # two detectors' definitions of a joint differ: measured median 16 px, worst point 35 px
+    assert np.median(err[seen]) < 25.0
+    assert np.all(np.nanmedian(np.where(seen, err, np.nan), axis=0) < 35.0)
+    # a coordinate slip (normalised by the wrong side, frames off by one) is far beyond that
+    assert np.median(np.linalg.norm(mp.points[:, :, ::-1] - openpose.points, axis=2)[seen]) > 100.0
+    assert np.all((tracked.confidence >= 0) & (tracked.confidence <= 1)) and tracked.confidence[:, 11:17].min() > 0.5
+
+
+def test_lifted_are_mediapipes_world_landmarks(tracked):
+    lifted = tracked.lifted
+    assert (lifted.T, lifted.K, lifted.frame, lifted.source) == (N, 33, "unknown", "mediapipe")
+    names = lifted.names
+    hips = (lifted.points[:, names.index("left_hip")] + lifted.points[:, names.index("right_hip")]) / 2
+    np.testing.assert_allclose(hips, 0.0, atol=0.01)  # hips-centred
+    head_y = lifted.points[:, names.index("nose"), 1]
+    ankle_y = lifted.points[:, names.index("left_ankle"), 1]
+    assert np.all(ankle_y - head_y > 1.0)  # metres, y down
+    np.testing.assert_array_equal(lifted.confidence, tracked.confidence)
+
+
+@pytest.mark.parametrize("suffix", [".json", ".npz"])
+def test_tracks_file_round_trips_2d_visibility_and_3d(tracked, tmp_path, suffix):
+    path = tmp_path / f"tracks{suffix}"
+    tracked.save(path)
+    back = pr.load_tracks(path)
+    assert back.names == tracked.names and back.fps == tracked.fps
+    np.testing.assert_array_equal(back.points, tracked.points)
+    np.testing.assert_array_equal(back.confidence, tracked.confidence)
+    assert back.lifted is not None and back.lifted.frame == "unknown" and back.lifted.names == tracked.names
+    np.testing.assert_array_equal(back.lifted.points, tracked.lifted.points)
+    np.testing.assert_array_equal(back.lifted.confidence, tracked.lifted.confidence)
+
+
+def test_track_command_writes_the_tracks_file(cut, tracked, tmp_path, capsys):
+    out = tmp_path / "t.json"
+    assert main(["track", str(cut), "--out", str(out)]) == 0
+    assert "10 frames of 1080 x 1920 at 60 fps" in capsys.readouterr().err
+    back = pr.load_tracks(out)
+    assert back.T == N and back.lifted is not None
+    np.testing.assert_allclose(back.points, tracked.points, atol=0.5)  # the same detector on the same frames
+
+
+@pytest.fixture(scope="module")
+def video_run(cut, tmp_path_factory):
+    out = tmp_path_factory.mktemp("video_out")
+    t0 = time.perf_counter()
+    status = main(["video", str(cut), "--out", str(out), "--no-plots", "--quiet"])
+    return status, out, time.perf_counter() - t0
+
+
+def test_video_command_writes_result_exports_and_overlay(video_run):
+    status, out, _ = video_run
+    assert status == 0
+    for name in ("tracks.json", "result.npz", "motion.bvh", "motion.csv", "motion.trc", "overlay.mp4"):
+        assert (out / name).stat().st_size > 0, name
+    res = pr.load_result(out / "result.npz")
+    assert res.keypoints3d.shape[0] == N and len(res.figure.keypoint_names) == 27  # the mediapipe33 map
+
+
+def test_overlay_plays_and_its_skeleton_lies_on_the_detections(video_run, openpose):
+    _, out, _ = video_run
+    cap = cv2.VideoCapture(str(out / "overlay.mp4"))
+    assert cap.isOpened()
+    frames = []
+    while True:
+        ok, f = cap.read()
+        if not ok:
+            break
+        frames.append(f)
+    assert int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) == N == len(frames)
+    assert frames[0].shape == (960, 2 * 540, 3)  # 1080 x 1920 scaled to 960 rows, a side view beside
+    diff = np.array(frames, np.int16) - np.array(JOINT_BGR, np.int16)
+    magenta = np.einsum("...c,...c->...", diff, diff, dtype=np.int32) < 90**2  # the drawn keypoints
+
+    def hit_rate(dx_px, r=12):
+        hits = []
+        for t in range(N):
+            for k in np.flatnonzero(openpose.observed[t]):
+                x, y = np.round(openpose.points[t, k] * 0.5).astype(int)  # into the overlay's scale
+                x += dx_px
+                hits.append(magenta[t, max(0, y - r): y + r + 1, max(0, x - r): min(540, x + r + 1)].any())
+        return np.mean(hits)
+
+    assert hit_rate(0) > 0.9  # measured 0.98 on the whole clip
+    assert hit_rate(120) < 0.4  # the same test, beside the body, fails (measured 0.10)
+    assert magenta[:, :, 540:].any()  # the side view has its keypoints too
+
+
+def test_bad_input_is_one_clear_error(cut, tmp_path, capsys):
+    text = tmp_path / "notes.mp4"
+    text.write_text("not a video\n")
+    assert main(["track", str(text), "--out", str(tmp_path / "a.json")]) == 2
+    err = capsys.readouterr().err
+    assert "not a video" in err and "notes.mp4" in err and "Traceback" not in err
+
+    assert main(["video", str(tmp_path / "missing.mp4"), "--out", str(tmp_path / "o")]) == 2
+    assert "file not found" in capsys.readouterr().err
+
+    blocker = tmp_path / "a_file"
+    blocker.write_text("")
+    t0 = time.perf_counter()
+    assert main(["video", str(cut), "--out", str(blocker / "out")]) == 2
+    err = capsys.readouterr().err
+    assert "cannot write" in err and "--out" in err
+    assert time.perf_counter() - t0 < 3.0  # before the detector ran
+    assert main(["track", str(cut), "--out", str(blocker / "t.json")]) == 2
+    assert "cannot write" in capsys.readouterr().err
+
+    assert main(["video", str(cut), str(cut), "--out", str(tmp_path / "o2")]) == 2
+    assert "--calibration" in capsys.readouterr().err
+
+
+def test_missing_extra_names_it(cut, tmp_path, capsys, monkeypatch):
+    monkeypatch.setitem(sys.modules, "mediapipe", None)  # import mediapipe now raises ImportError
+    assert main(["track", str(cut), "--out", str(tmp_path / "t.json")]) == 2
+    err = capsys.readouterr().err
+    assert 'pip install "pinrecon[video]"' in err and "Traceback" not in err
