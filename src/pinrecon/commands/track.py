@@ -47,8 +47,8 @@ def add_video_options(p, *, fps: bool = True) -> None:
         p.add_argument("--fps", type=float, help=FPS_HELP)
     p.add_argument("--max-frames", type=int, metavar="N", help="only the first N frames")
     p.add_argument("--model-complexity", type=int, choices=(0, 1, 2), default=1,
-                   help="MediaPipe Pose's model: 0 lite, 1 full (the default; in the wheel), 2 heavy (MediaPipe "
-                   "downloads it on first use)")
+                   help="MediaPipe Pose's model: 1 full (the default: in MediaPipe's wheel, offline), 0 lite or "
+                   "2 heavy (MediaPipe downloads those on first use)")
 
 
 def check_video_options(args) -> None:

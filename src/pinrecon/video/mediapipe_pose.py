@@ -85,8 +85,8 @@ class MediaPipePose:
     """One MediaPipe Pose tracker over consecutive frames: ``detect(frame_bgr)`` ->
     ``(uv_px (33, 2), visibility (33,), p_world_m (33, 3))``, NaN and 0 where nobody is found.
 
-    ``model_complexity``: 0 (lite), 1 (full, the default), 2 (heavy: MediaPipe downloads it
-    on first use). Close it (or use ``with``) to free the graph."""
+    ``model_complexity``: 1 (full, the default: the model in MediaPipe's wheel), 0 (lite) or
+    2 (heavy): MediaPipe downloads those on first use. Close it (or use ``with``) to free the graph."""
 
     def __init__(self, model_complexity: int = 1, *, static_image_mode: bool = False):
         mp = _import_mediapipe()
