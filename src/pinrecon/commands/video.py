@@ -54,9 +54,11 @@ def _outputs(out: Path, videos: list[str]) -> dict:
     }
 
 
-def run_video(args) -> dict:
+def run_video(args, tracked=None) -> dict:
     """The work of ``pinrecon video`` for its parsed ``args``; returns ``{"files": [...],
-    "frames": n, "seconds": s, "result": Result, "stages": {name: seconds}}``."""
+    "frames": n, "seconds": s, "result": Result, "stages": {name: seconds}}``. ``tracked``:
+    one :class:`~pinrecon.Tracks` per video from an earlier :func:`pinrecon.video.track_video`
+    (a benchmark's cache), used instead of running the detector again."""
     from ..arguments import reconstruct_from_args
     from ..video import track_video, video_info
 
@@ -80,8 +82,11 @@ def run_video(args) -> dict:
     tracks = []
     for i, (video, info) in enumerate(zip(args.videos, infos)):
         t0 = time.perf_counter()
-        tr = track_video(video, fps=args.fps, max_frames=args.max_frames, model_complexity=args.model_complexity,
-                         progress=not args.quiet)
+        if tracked is not None:
+            tr = tracked[i]
+        else:
+            tr = track_video(video, fps=args.fps, max_frames=args.max_frames, model_complexity=args.model_complexity,
+                             progress=not args.quiet)
         tr.lifted.camera = i
         tr.save(files["tracks"][i])
         tracks.append(tr)
