@@ -153,6 +153,19 @@ def test_overlay_plays_and_its_skeleton_lies_on_the_detections(video_run, openpo
     assert magenta[:, :, 540:].any()  # the side view has its keypoints too
 
 
+def test_overlay_stops_where_the_result_does(video_run, tmp_path):
+    """The result covers the cut's 10 frames; drawn over the whole 100-frame video, the
+    overlay stops there too (and may be drawn at the input's size)."""
+    from pinrecon.viz.overlay import write_overlay
+
+    _, out, _ = video_run
+    path = write_overlay(pr.load_result(out / "result.npz"), data_file("pose2sim-balancing/videos/cam01.mp4"),
+                         tmp_path / "o.mp4", max_height=None)
+    cap = cv2.VideoCapture(str(path))
+    assert int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) == N
+    assert (cap.get(cv2.CAP_PROP_FRAME_WIDTH), cap.get(cv2.CAP_PROP_FRAME_HEIGHT)) == (2 * 1080, 1920)
+
+
 def test_bad_input_is_one_clear_error(cut, tmp_path, capsys):
     text = tmp_path / "notes.mp4"
     text.write_text("not a video\n")

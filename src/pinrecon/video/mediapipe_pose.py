@@ -58,9 +58,10 @@ def _import_mediapipe():
 
 @contextlib.contextmanager
 def _quiet_native_stderr():
-    """MediaPipe's native code prints start-up notes (TensorFlow Lite's delegate, glog lines
-    that ignore ``GLOG_minloglevel``) straight to file descriptor 2: hide them while the
-    graph starts."""
+    """MediaPipe's native code prints notes (TensorFlow Lite's delegate, glog lines that
+    ignore ``GLOG_minloglevel``) straight to file descriptor 2, from its own threads and a
+    moment after the call that caused them: hide them while MediaPipe works. Yields a text
+    stream to the real stderr (for a progress bar)."""
     try:
         fd = sys.stderr.fileno()
     except (AttributeError, OSError, ValueError):  # a replaced stderr (pytest's capture)
@@ -70,15 +71,18 @@ def _quiet_native_stderr():
         saved = os.dup(fd)
         null = os.open(os.devnull, os.O_WRONLY)
     except OSError:  # pragma: no cover - no descriptors to spare
-        yield
+        yield sys.stderr
         return
+    visible = os.fdopen(os.dup(saved), "w", buffering=1)
     try:
         os.dup2(null, fd)
-        yield
+        yield visible
     finally:
+        visible.flush()
         os.dup2(saved, fd)
         os.close(saved)
         os.close(null)
+        visible.close()
 
 
 class MediaPipePose:
@@ -150,7 +154,8 @@ def track_video(
     total = info.frames if max_frames is None else min(info.frames or max_frames, max_frames)
     uv, vis, world = [], [], []
     name = os.path.basename(str(path))
-    with MediaPipePose(model_complexity) as pose, FrameProgress(total, f"track {name}", enabled=progress) as bar:
+    with _quiet_native_stderr() as stderr, MediaPipePose(model_complexity) as pose, \
+            FrameProgress(total, f"track {name}", enabled=progress, file=stderr) as bar:
         for t, frame in enumerate(iter_frames(path, max_frames)):
             a, b, c = pose.detect(frame)
             uv.append(a)

@@ -13,10 +13,12 @@ __all__ = ["FrameProgress"]
 class FrameProgress:
     """``with FrameProgress(total, "track cam01.mp4") as bar: bar.update()`` per frame.
 
-    ``enabled=False`` prints nothing; ``total`` may be 0 (unknown length)."""
+    ``enabled=False`` prints nothing; ``total`` may be 0 (unknown length); ``file``: where to
+    (default stderr)."""
 
-    def __init__(self, total: int, desc: str, *, enabled: bool = True, unit: str = "frame"):
+    def __init__(self, total: int, desc: str, *, enabled: bool = True, unit: str = "frame", file=None):
         self.total, self.desc, self.enabled, self.unit = int(total or 0), desc, enabled, unit
+        self.file = sys.stderr if file is None else file
         self.n, self.t0, self._bar, self._last = 0, time.perf_counter(), None, -1
         if not enabled:
             return
@@ -24,7 +26,7 @@ class FrameProgress:
             from tqdm import tqdm
         except ImportError:
             return
-        self._bar = tqdm(total=self.total or None, desc=desc, unit=unit, file=sys.stderr, leave=True,
+        self._bar = tqdm(total=self.total or None, desc=desc, unit=unit, file=self.file, leave=True,
                          dynamic_ncols=True)
 
     def update(self, n: int = 1) -> None:
@@ -34,22 +36,22 @@ class FrameProgress:
         if self._bar is not None:
             self._bar.update(n)
             return
-        tty = sys.stderr.isatty()
+        tty = self.file.isatty()
         step = max(1, self.total // 10) if self.total else 50
         if tty or self.n // step != self._last or self.n == self.total:
             self._last = self.n // step
             rate = self.n / max(time.perf_counter() - self.t0, 1e-9)
             of = f"/{self.total}" if self.total else ""
             line = f"{self.desc}: {self.n}{of} {self.unit}s, {rate:.1f}/s"
-            print(("\r" + line.ljust(70)) if tty else line, end="" if tty else "\n", file=sys.stderr, flush=True)
+            print(("\r" + line.ljust(70)) if tty else line, end="" if tty else "\n", file=self.file, flush=True)
 
     def close(self) -> None:
         if not self.enabled:
             return
         if self._bar is not None:
             self._bar.close()
-        elif sys.stderr.isatty():
-            print(file=sys.stderr)
+        elif self.file.isatty():
+            print(file=self.file)
 
     def __enter__(self):
         return self

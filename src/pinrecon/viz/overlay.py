@@ -61,7 +61,8 @@ def write_overlay(
     ``result`` : a :class:`~pinrecon.Result` (or a result NPZ path); ``camera_index`` picks
     which of its cameras filmed ``video`` (several-camera solves). ``tracks`` : that camera's
     :class:`~pinrecon.Tracks`, drawn as white rings. The video's frame ``t`` shows the result
-    at the nearest time ``t / fps``. ``max_height`` : the overlay's height in pixels (the
+    at the nearest time ``t / fps``; the overlay stops at the result's last frame (or the
+    tracks' last). ``max_height`` : the overlay's height in pixels (the
     input is scaled down to it, never up; ``None``: the input's). ``second_view`` : the side
     panel's angle about the up axis, degrees (default 90). Returns the path written
     (atomically); the file holds one frame per input frame, ``2 W x H`` pixels after scaling.
@@ -106,14 +107,17 @@ def write_overlay(
                 cv2.circle(img, tuple(pts[k]), radius, JOINT_BGR, -1, cv2.LINE_AA)
 
     out_path = Path(out_path)
-    n_frames = info.frames
+    # the frames the result covers (a --max-frames run stops there), or the tracks' frames
+    n_frames = int(np.floor(motion.times[-1] * info.fps + 0.5)) + 1 if tracks is None else tracks.T
+    if info.frames:
+        n_frames = min(n_frames, info.frames)
     with atomic_path(out_path) as tmp:
         writer = cv2.VideoWriter(str(tmp), cv2.VideoWriter_fourcc(*"mp4v"), info.fps, (2 * W, H))
         if not writer.isOpened():
             raise InputError("OpenCV cannot write an MPEG-4 video there", file=out_path)
         try:
             with FrameProgress(n_frames, f"overlay {out_path.name}", enabled=progress) as bar:
-                for t, frame in enumerate(iter_frames(video)):
+                for t, frame in enumerate(iter_frames(video, n_frames)):
                     f = motion.frame_at(t / info.fps)
                     left = cv2.resize(frame, (W, H), interpolation=cv2.INTER_AREA) if (W, H) != frame.shape[1::-1] \
                         else frame.copy()
