@@ -60,9 +60,10 @@ def check_video_options(args) -> None:
 
 
 def cmd_track(args) -> int:
-    from ..video import track_video, video_info
+    from ..video import require_mediapipe, track_video, video_info
 
     check_video_options(args)
+    require_mediapipe()
     check_writable(args.out)
     if Path(args.out).suffix.lower() not in (".json", ".npz"):
         raise InputError("the tracks file is .json or .npz", file=args.out, field="--out")

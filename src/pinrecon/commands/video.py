@@ -60,9 +60,11 @@ def run_video(args, tracked=None) -> dict:
     one :class:`~pinrecon.Tracks` per video from an earlier :func:`pinrecon.video.track_video`
     (a benchmark's cache), used instead of running the detector again."""
     from ..arguments import reconstruct_from_args
-    from ..video import track_video, video_info
+    from ..video import require_mediapipe, track_video, video_info
 
     check_video_options(args)
+    if tracked is None:
+        require_mediapipe()
     if args.calibration:
         if args.camera:
             raise InputError("give --calibration or --camera, not both", field="--calibration")

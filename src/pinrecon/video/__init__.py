@@ -14,7 +14,7 @@ call these. Without the extra, the functions raise :class:`MissingVideoExtraErro
 """
 
 from .frames import EXTRA_HINT, MissingVideoExtraError, VideoInfo, iter_frames, require_cv2, video_info
-from .mediapipe_pose import MEDIAPIPE_VERSION, MediaPipePose, track_video
+from .mediapipe_pose import MEDIAPIPE_VERSION, MediaPipePose, require_mediapipe, track_video
 from .progress import FrameProgress
 
 __all__ = [
@@ -28,4 +28,5 @@ __all__ = [
     "require_cv2",
     "EXTRA_HINT",
     "MEDIAPIPE_VERSION",
+    "require_mediapipe",
 ]

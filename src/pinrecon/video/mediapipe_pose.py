@@ -31,10 +31,24 @@ from ..tracks import Tracks
 from .frames import EXTRA_HINT, MissingVideoExtraError, iter_frames, require_cv2, video_info
 from .progress import FrameProgress
 
-__all__ = ["track_video", "MediaPipePose", "MEDIAPIPE_VERSION"]
+__all__ = ["track_video", "MediaPipePose", "MEDIAPIPE_VERSION", "require_mediapipe"]
 
 #: the MediaPipe release whose legacy Pose solution this reads (its model is in the wheel)
 MEDIAPIPE_VERSION = "0.10.14"
+
+
+def require_mediapipe() -> None:
+    """Check, without importing it (a second), that MediaPipe is installed; else
+    :class:`~pinrecon.video.MissingVideoExtraError` naming the extra. For commands that
+    check their inputs before any work."""
+    import importlib.util
+
+    try:
+        found = importlib.util.find_spec("mediapipe") is not None
+    except (ImportError, ValueError):  # a module set to None in sys.modules
+        found = False
+    if not found:
+        raise MissingVideoExtraError(f"tracking a video needs MediaPipe {MEDIAPIPE_VERSION}: {EXTRA_HINT}")
 
 
 def _import_mediapipe():
