@@ -18,10 +18,10 @@ from conftest import data_file, data_folder
 cv2 = pytest.importorskip("cv2")
 pytest.importorskip("mediapipe")
 
-import pinrecon as pr  # noqa: E402
-from pinrecon.cli import main  # noqa: E402
-from pinrecon.layouts import COCO_17  # noqa: E402
-from pinrecon.viz.overlay import JOINT_BGR  # noqa: E402
+import pinrecon as pr
+from pinrecon.cli import main
+from pinrecon.layouts import COCO_17
+from pinrecon.viz.overlay import JOINT_BGR
 
 N = 10
 BODY = list(COCO_17[5:])  # shoulders, elbows, wrists, hips, knees, ankles

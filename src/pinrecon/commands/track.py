@@ -14,7 +14,7 @@ from pathlib import Path
 
 from ..errors import InputError
 
-__all__ = ["register", "cmd_track", "check_writable", "add_video_options", "check_video_options"]
+__all__ = ["add_video_options", "check_video_options", "check_writable", "cmd_track", "register"]
 
 
 def check_writable(path: str | os.PathLike, *, folder: bool = False) -> Path:

@@ -23,7 +23,7 @@ from pathlib import Path
 from ..errors import InputError
 from .track import FPS_HELP, add_video_options, check_video_options, check_writable
 
-__all__ = ["register", "cmd_video", "run_video"]
+__all__ = ["cmd_video", "register", "run_video"]
 
 
 class _SolveLine:

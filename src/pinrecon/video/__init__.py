@@ -13,20 +13,27 @@ and writes the exports and the overlay video, :func:`pinrecon.viz.overlay.write_
 call these. Without the extra, the functions raise :class:`MissingVideoExtraError` naming it.
 """
 
-from .frames import EXTRA_HINT, MissingVideoExtraError, VideoInfo, iter_frames, require_cv2, video_info
+from .frames import (
+    EXTRA_HINT,
+    MissingVideoExtraError,
+    VideoInfo,
+    iter_frames,
+    require_cv2,
+    video_info,
+)
 from .mediapipe_pose import MEDIAPIPE_VERSION, MediaPipePose, require_mediapipe, track_video
 from .progress import FrameProgress
 
 __all__ = [
-    "track_video",
-    "video_info",
-    "iter_frames",
-    "VideoInfo",
-    "MediaPipePose",
-    "MissingVideoExtraError",
-    "FrameProgress",
-    "require_cv2",
     "EXTRA_HINT",
     "MEDIAPIPE_VERSION",
+    "FrameProgress",
+    "MediaPipePose",
+    "MissingVideoExtraError",
+    "VideoInfo",
+    "iter_frames",
+    "require_cv2",
     "require_mediapipe",
+    "track_video",
+    "video_info",
 ]

@@ -17,7 +17,7 @@ import numpy as np
 
 from ..errors import InputError, PinreconError
 
-__all__ = ["MissingVideoExtraError", "VideoInfo", "require_cv2", "video_info", "iter_frames", "EXTRA_HINT"]
+__all__ = ["EXTRA_HINT", "MissingVideoExtraError", "VideoInfo", "iter_frames", "require_cv2", "video_info"]
 
 EXTRA_HINT = 'pip install "pinrecon[video]"'
 

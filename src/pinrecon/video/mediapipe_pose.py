@@ -31,7 +31,7 @@ from ..tracks import Tracks
 from .frames import EXTRA_HINT, MissingVideoExtraError, iter_frames, require_cv2, video_info
 from .progress import FrameProgress
 
-__all__ = ["track_video", "MediaPipePose", "MEDIAPIPE_VERSION", "require_mediapipe"]
+__all__ = ["MEDIAPIPE_VERSION", "MediaPipePose", "require_mediapipe", "track_video"]
 
 #: the MediaPipe release whose legacy Pose solution this reads (its model is in the wheel)
 MEDIAPIPE_VERSION = "0.10.14"

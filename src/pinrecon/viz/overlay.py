@@ -23,7 +23,7 @@ from ..video.frames import iter_frames, require_cv2, video_info
 from ..video.progress import FrameProgress
 from ._common import as_motion, second_view_camera, skeleton, skeleton_points
 
-__all__ = ["write_overlay", "LEFT_BGR", "RIGHT_BGR", "CENTRE_BGR", "JOINT_BGR", "overlay_scale"]
+__all__ = ["CENTRE_BGR", "JOINT_BGR", "LEFT_BGR", "RIGHT_BGR", "overlay_scale", "write_overlay"]
 
 LEFT_BGR = (255, 140, 0)  # azure: the figure's left
 RIGHT_BGR = (40, 40, 230)  # red: its right
@@ -42,7 +42,7 @@ def overlay_scale(width: int, height: int, max_height: int | None) -> float:
 
 
 def _even(x: float) -> int:
-    return max(2, int(round(x / 2)) * 2)
+    return max(2, round(x / 2) * 2)
 
 
 def write_overlay(
@@ -89,8 +89,8 @@ def write_overlay(
     zoom = 0.85 * min(W, H) / span
     uv_side = (uv_side - (lo + hi) / 2) * zoom + [W / 2, H / 2]
     colours = [LEFT_BGR if c == "L" else RIGHT_BGR if c == "R" else CENTRE_BGR for c in sk.side]
-    thick = max(2, int(round(H / 240)))
-    radius = max(3, int(round(H / 160)))
+    thick = max(2, round(H / 240))
+    radius = max(3, round(H / 160))
     det = None
     if tracks is not None:
         det = np.asarray(tracks.points, float) * [sx, sy]
