@@ -166,6 +166,34 @@ def test_overlay_stops_where_the_result_does(video_run, tmp_path):
     assert (cap.get(cv2.CAP_PROP_FRAME_WIDTH), cap.get(cv2.CAP_PROP_FRAME_HEIGHT)) == (2 * 1080, 1920)
 
 
+def test_two_calibrated_videos_are_one_solve(cut, tmp_path):
+    """Cameras 1 and 2 of the trial with their calibration (pinrecon camera files from the
+    Pose2Sim TOML): one solve of 5 frames, in the calibration's world, near the four-camera
+    triangulation."""
+    from pinrecon.io.calibration import load_cameras
+    from pinrecon.io.trc import load_trc
+
+    cams = load_cameras(data_file("pose2sim-balancing/calibration/Calib_qualisys.toml"))
+    files = []
+    for c in cams[:2]:
+        c.camera.save(tmp_path / f"{c.name}.json")
+        files += ["--camera", str(tmp_path / f"{c.name}.json")]
+    video2 = data_file("pose2sim-balancing/videos/cam02.mp4")
+    out = tmp_path / "two"
+    assert main(["video", str(cut), str(video2), *files, "--max-frames", "5", "--no-plots", "--quiet",
+                 "--out", str(out)]) == 0
+    for name in ("tracks_cam01_cut.json", "tracks_cam02.json", "overlay_cam01_cut.mp4", "overlay_cam02.mp4"):
+        assert (out / name).stat().st_size > 0, name
+    assert int(cv2.VideoCapture(str(out / "overlay_cam02.mp4")).get(cv2.CAP_PROP_FRAME_COUNT)) == 5
+    res = pr.load_result(out / "result.npz")
+    assert len(res.cameras) == 2 and pr.load_tracks(out / "tracks_cam02.json").lifted.camera == 1
+    m = load_trc(data_file("pose2sim-balancing/pose-3d/S00_P00_T01_BalancingTrial_0-100.trc"), names="pinrecon")
+    G = m.points[:5, [m.names.index(n) for n in BODY]]
+    P = res.keypoints3d[:, res.figure.keypoint_index(BODY)]
+    err_mm = 1000 * np.linalg.norm(P - G, axis=2)
+    assert np.median(err_mm) < 80.0  # two calibrated views fix depth: no alignment needed (4 views: 49 mm)
+
+
 def test_bad_input_is_one_clear_error(cut, tmp_path, capsys):
     text = tmp_path / "notes.mp4"
     text.write_text("not a video\n")
