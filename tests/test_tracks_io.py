@@ -266,6 +266,7 @@ def test_every_docs_json_example_loads(tmp_path):
     assert set(examples) == {
         "minimal.bvh",
         "tracks.json",
+        "tracks_lifted.json",
         "openpose/clip_000000000000_keypoints.json",
         "openpose/clip_000000000001_keypoints.json",
         "coco_dataset.json",
@@ -287,6 +288,10 @@ def test_every_docs_json_example_loads(tmp_path):
         [True, False, True],
         [True, True, False],
     ]
+
+    lifted = load_tracks(tmp_path / "tracks_lifted.json").lifted
+    assert lifted.names == ["nose", "left_knee", "pelvis"] and lifted.source == "mediapipe"
+    assert lifted.confidence.tolist() == [[0.9, 0.8, 1.0], [0.9, 0.0, 1.0]]
 
     openpose = load_tracks(tmp_path / "openpose", fps=30.0)
     assert openpose.names == BODY_25 and openpose.T == 2 and not openpose.observed[1].any()

@@ -27,7 +27,7 @@ from .io.coco import coco_kind, read_coco
 from .io.mmpose import is_mmpose, read_mmpose
 from .io.openpose_json import read_openpose
 from .io.people import MAX_COORD
-from .io.track_arrays import TrackArrays, TracksWarning
+from .io.track_arrays import LiftedArrays, TrackArrays, TracksWarning
 from .io.tracks_json import read_tracks_json, read_tracks_npz, write_tracks
 from .lifted import Lifted
 
@@ -154,7 +154,7 @@ class Tracks:
         notes are issued as :class:`TracksWarning` (one warning each)."""
         tracks = cls(
             arrays.points, arrays.names, arrays.fps if fps is None else fps, arrays.confidence, arrays.source,
-            arrays.layout,
+            arrays.layout, _lifted_from_arrays(arrays),
         )
         for note in arrays.notes:
             warnings.warn(note, TracksWarning, stacklevel=3)
@@ -213,8 +213,28 @@ class Tracks:
         """Write JSON (``.json``) or NPZ (``.npz``) atomically; see ``docs/formats.md``."""
         # validate again (attributes may have been replaced since construction): a file that
         # load_tracks would reject is never written
-        t = Tracks(self.points, self.names, self.fps, self.confidence, str(path))
-        write_tracks(path, t.points, t.names, t.fps, t.confidence)
+        t = Tracks(self.points, self.names, self.fps, self.confidence, str(path), lifted=self.lifted)
+        lifted = None
+        if t.lifted is not None:
+            lf = Lifted(t.lifted.points, t.lifted.names, t.lifted.confidence, t.lifted.frame, t.lifted.source,
+                        t.lifted.camera)
+            lifted = LiftedArrays(lf.points, lf.names, lf.confidence, lf.frame, lf.source, lf.camera)
+        write_tracks(path, t.points, t.names, t.fps, t.confidence, lifted)
+
+
+def _lifted_from_arrays(arrays: TrackArrays) -> Lifted | None:
+    """The tracks file's lifted block as a validated :class:`Lifted` (errors name the file)."""
+    la = arrays.lifted
+    if la is None:
+        return None
+    try:
+        lifted = Lifted(la.points, la.names, la.confidence, la.frame, la.source, la.camera)
+    except InputError as err:
+        raise InputError(err.message, file=arrays.source, field=err.field, frame=err.frame) from None
+    if lifted.T != len(arrays.points):
+        raise InputError(f"{lifted.T} frames of lifted 3D for {len(arrays.points)} frames of tracks",
+                         file=arrays.source, field="lifted")
+    return lifted
 
 
 def guess_tracks_format(path: str | os.PathLike) -> str:

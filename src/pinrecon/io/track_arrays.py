@@ -12,12 +12,28 @@ from typing import NamedTuple
 
 import numpy as np
 
-__all__ = ["TrackArrays", "TracksWarning"]
+__all__ = ["TrackArrays", "TracksWarning", "LiftedArrays"]
 
 
 class TracksWarning(UserWarning):
     """Something about the input tracks the user should know (broken frames read as
     missing, people followed across frames, a layout chosen by default ...)."""
+
+
+class LiftedArrays(NamedTuple):
+    """The fields of :class:`pinrecon.lifted.Lifted`, in its order, as read from a file.
+
+    ``points`` (T, K, 3), NaN where missing; ``names`` K point names; ``confidence``
+    (T, K) or None; ``frame`` ``"camera"`` or ``"unknown"``; ``source`` the lifter (or the
+    file) they came from; ``camera`` the index of the camera whose image was lifted.
+    """
+
+    points: np.ndarray
+    names: list[str]
+    confidence: np.ndarray | None
+    frame: str
+    source: str | None
+    camera: int = 0
 
 
 class TrackArrays(NamedTuple):
@@ -28,7 +44,8 @@ class TrackArrays(NamedTuple):
     ``confidence`` (T, K) or None; ``source`` the file or folder read; ``layout`` the
     detector layout the points were read as (:mod:`pinrecon.layouts`), if any;
     ``notes`` what the user should be told (issued as :class:`TracksWarning` when the
-    ``Tracks`` is built).
+    ``Tracks`` is built); ``lifted`` a lifter's 3D cues stored beside the tracks
+    (:class:`LiftedArrays`), if any.
     """
 
     points: np.ndarray
@@ -38,3 +55,4 @@ class TrackArrays(NamedTuple):
     source: str
     layout: str | None = None
     notes: tuple[str, ...] = ()
+    lifted: LiftedArrays | None = None
