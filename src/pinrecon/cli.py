@@ -134,6 +134,8 @@ def cmd_reconstruct(args) -> int:
     auto = _auto_camera_from_args(args)
     cams = [auto] if auto is not None else _cameras_for_tracks(args.camera, args.tracks)
     tracks = [load_tracks(path, fps=args.fps, person=args.person, layout=args.layout) for path in args.tracks]
+    if args.lifted:
+        tracks = _with_lifted(tracks, args)
     fig = _figure_from_args(args, tracks)
     if len(tracks) == 1:  # one camera: plain arguments, as the Python API takes them
         tracks, cam = tracks[0], cams[0]
@@ -157,6 +159,23 @@ def cmd_reconstruct(args) -> int:
         res.extras.update(stability(fig, tracks, cam, kf, result=res, runs=args.stability, n_jobs=args.jobs,
                                     **kw).to_extras())
     return _save_and_report(res, args)
+
+
+def _with_lifted(tracks, args) -> list:
+    """The tracks with the 3D cues of ``--lifted`` (one file per ``--tracks``, in order) attached."""
+    from dataclasses import replace
+
+    from .errors import InputError
+    from .lifted import load_lifted
+
+    if len(args.lifted) != len(tracks):
+        raise InputError(f"{len(args.lifted)} --lifted for {len(tracks)} --tracks: give one per --tracks, in order",
+                         field="--lifted")
+    out = []
+    for cam, (t, path) in enumerate(zip(tracks, args.lifted)):
+        lf = load_lifted(path, fmt=args.lifted_format, layout=args.lifted_layout, frames=t.T)
+        out.append(replace(t, lifted=replace(lf, camera=cam)))
+    return out
 
 
 def _save_and_report(res, args) -> int:
@@ -406,6 +425,12 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--save-camera", metavar="FILE.json",
                    help="write the (fitted) camera as a pinrecon camera JSON, for reuse with --camera FILE.json")
     r.add_argument("--keyframes", help="keyframes JSON")
+    r.add_argument("--lifted", action="append", metavar="FILE",
+                   help="a lifter's 3D output of the same frames, as learned 3D cues: MotionBERT / VideoPose3D .npy, "
+                   "MMPose 3D JSON (docs/formats.md, section 11); one per --tracks, in order")
+    r.add_argument("--lifted-format", choices=["npy", "motionbert", "videopose3d", "mmpose3d"],
+                   help="format of --lifted (default: from the suffix)")
+    r.add_argument("--lifted-layout", help="joint order of --lifted (default h36m17)")
     r.add_argument("--fps-out", type=float, help="reconstruction rate (integer multiple of the tracks' rate)")
     r.add_argument("--seed", choices=["auto", "rest", "keyframes", "planarity", "hypotheses"],
                    help="the start (default auto: the multi-hypothesis start when keyframes are absent or sparse, "
