@@ -181,26 +181,33 @@ def test_a_joint_order_that_cannot_be_h36m_is_refused(tmp_path):
     assert "3 names given for 17 joints" in str(_refused(path, names=["a", "b", "c"]))
 
 
-def mmpose3d_frames(T=4):
-    """MMPose's 3D inferencer video output: display axes X = -x, Y = z, Z = -y (camera x, y, z)."""
+def mmpose3d_frames(T=4, track_ids=False):
+    """MMPose's 3D inferencer video output: display axes X = -x, Y = z, Z = -y (camera x, y, z),
+    two people in track order; with ``track_ids`` (as some scripts add them) the order changes
+    after the first frame."""
     cam = clip3d(T)
     disp = np.stack([-cam[..., 0], cam[..., 2], -cam[..., 1]], axis=-1)
     other = disp + np.array([1.5, 0.0, 0.0])
     frames = []
     for t in range(T):
-        me = {"keypoints": disp[t].tolist(), "keypoint_scores": [0.5 + 0.01 * k for k in range(17)], "track_id": 3}
-        them = {"keypoints": other[t].tolist(), "keypoint_scores": [1.0] * 17, "track_id": 1}
-        instances = [me, them] if t == 0 else [them, me]  # sorted by track id after the first frame
+        me = {"keypoints": disp[t].tolist(), "keypoint_scores": [0.5 + 0.01 * k for k in range(17)],
+              "bbox": [10.0, 20.0, 200.0, 400.0], "bbox_score": 0.9}
+        them = {"keypoints": other[t].tolist(), "keypoint_scores": [1.0] * 17}
+        instances = [me, them]
+        if track_ids:
+            me["track_id"], them["track_id"] = 3, 1
+            instances = [me, them] if t == 0 else [them, me]
         frames.append({"frame_id": t, "instances": [] if t == 2 else instances})
     return frames
 
 
-def test_mmpose3d_json_back_in_camera_axes(tmp_path):
+@pytest.mark.parametrize("track_ids", [False, True], ids=["mmpose", "with-track-ids"])
+def test_mmpose3d_json_back_in_camera_axes(tmp_path, track_ids):
     path = tmp_path / "video.json"
-    path.write_text(json.dumps(mmpose3d_frames()))
+    path.write_text(json.dumps(mmpose3d_frames(track_ids=track_ids)))
     lf = load_lifted(path)
     truth = clip3d()
-    for t in (0, 1, 3):  # the person of track 3 followed, whatever its place in the list
+    for t in (0, 1, 3):  # the first person followed (by its track id where the file has them)
         np.testing.assert_array_equal(lf.points[t], truth[t])
     assert np.isnan(lf.points[2]).all() and (lf.confidence[2] == 0).all()  # nobody in frame 2
     np.testing.assert_allclose(lf.confidence[3], 0.5 + 0.01 * np.arange(17), rtol=0, atol=0)
@@ -223,12 +230,12 @@ def test_mmpose3d_errors_name_file_field_frame(tmp_path):
         path.write_text(json.dumps(frames))
         return _refused(path)
 
-    e = broken(lambda f: f[1]["instances"][1]["keypoints"].pop())
-    assert (e.field, e.frame) == ("[1].instances[1].keypoints", 1) and "expected 17 keypoints, got 16" in str(e)
-    e = broken(lambda f: f[3]["instances"][1]["keypoints"][4].__setitem__(0, "x"))
-    assert (e.field, e.frame) == ("[3].instances[1].keypoints", 3)
-    e = broken(lambda f: f[3]["instances"][1]["keypoint_scores"].pop())
-    assert e.field == "[3].instances[1].keypoint_scores" and e.frame == 3
+    e = broken(lambda f: f[1]["instances"][0]["keypoints"].pop())
+    assert (e.field, e.frame) == ("[1].instances[0].keypoints", 1) and "expected 17 keypoints, got 16" in str(e)
+    e = broken(lambda f: f[3]["instances"][0]["keypoints"][4].__setitem__(0, "x"))
+    assert (e.field, e.frame) == ("[3].instances[0].keypoints", 3)
+    e = broken(lambda f: f[3]["instances"][0]["keypoint_scores"].pop())
+    assert e.field == "[3].instances[0].keypoint_scores" and e.frame == 3
     e = broken(lambda f: [i["keypoints"].pop() for fr in f for i in fr["instances"]])
     assert "expected 17 joints per frame" in str(e) and e.frame is None
     e = broken(lambda f: f.pop(1))

@@ -11,8 +11,9 @@ Two formats (``docs/formats.md``, section 11):
   z forward, pelvis at the origin. Both are the camera's axes: ``frame="camera"``.
 * **MMPose's 3D inferencer** JSON (``MMPoseInferencer(pose3d=...)`` with ``pred_out_dir``
   on a video): ``[{"frame_id": t, "instances": [{"keypoints": [[X, Y, Z] x 17],
-  "keypoint_scores": [17], "track_id": ...}, ...]}, ...]`` (or the instance lists of
-  ``{"predictions": [...]}``). MMPose turns its lifter's camera-frame output into
+  "keypoint_scores": [17], "bbox": ..., "bbox_score": ...}, ...]}, ...]`` (or the instance
+  lists of ``{"predictions": [...]}``), the instances in the order of their track ids
+  (the inferencer sorts them so; the file does not carry the ids). MMPose turns its lifter's camera-frame output into
   ``X = -x, Y = z, Z = -y`` and shifts Z so that the lowest keypoint is at 0 (a z-up
   display frame, a mirror image of the camera's); the reader turns it back
   (``x = -X, y = -Z, z = Y``), so these too are in the camera's axes.
@@ -166,10 +167,10 @@ def _instances(data, path) -> list[tuple[int, object, str]]:
 def read_mmpose3d(path: str | os.PathLike, *, person: int = 0, layout=None, names=None,
                   source: str | None = None) -> LiftedArrays:
     """MMPose's 3D inferencer JSON (see the module docstring), turned back to the camera's
-    axes. One person is followed: ``person`` (default 0) indexes the instances of the first
-    frame that has any; later frames take the instance with its ``track_id`` (MMPose sorts
-    instances by it), or the same index when there are no track ids. Frames without the
-    person are missing (NaN, confidence 0)."""
+    axes. One person is followed: ``person`` (default 0) indexes the instances of each
+    frame (MMPose writes them in track order), or, when the instances carry a ``track_id``
+    (scripts that add it), the track of that instance in the first frame with anyone is
+    followed. Frames without the person are missing (NaN, confidence 0)."""
     path = Path(path)
     items = _instances(read_json(path), path)
     T = len(items)
