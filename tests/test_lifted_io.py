@@ -271,3 +271,29 @@ def test_lifted_file_attached_to_tracks_round_trips(tmp_path):
     back = load_tracks(tmp_path / "t.npz").lifted
     np.testing.assert_array_equal(back.points, clip3d(4))
     assert back.names == H36M_NAMES and back.source == str(tmp_path / "X3D.npy")
+
+
+def test_reconstruct_lifted_reaches_the_pipeline(tmp_path, monkeypatch):
+    """``pinrecon reconstruct --lifted FILE``: the tracks handed to ``reconstruct`` carry the
+    file's points (the solve itself is replaced here; it is the rows' business)."""
+    import importlib
+
+    pipeline = importlib.import_module("pinrecon.reconstruct")  # the module (the package exports the function)
+    seen = {}
+
+    class Stop(Exception):
+        pass
+
+    def fake(figure, tracks, camera, keyframes=None, **kw):
+        seen["tracks"] = tracks
+        raise Stop
+
+    monkeypatch.setattr(pipeline, "reconstruct", fake)
+    np.save(tmp_path / "X3D.npy", clip3d(4))
+    Tracks(np.full((4, 1, 2), 300.0), ["nose"], 30.0).save(tmp_path / "t.json")
+    with pytest.raises(Stop):
+        main(["reconstruct", "--figure", "human", "--tracks", str(tmp_path / "t.json"), "--camera", "auto",
+              "--image-size", "640", "480", "--lifted", str(tmp_path / "X3D.npy"), "--out", str(tmp_path / "r.npz")])
+    lf = seen["tracks"].lifted
+    np.testing.assert_array_equal(lf.points, clip3d(4))
+    assert lf.names == H36M_NAMES and lf.frame == "camera" and lf.camera == 0
