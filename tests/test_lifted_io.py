@@ -130,6 +130,7 @@ def test_motionbert_videopose3d_npy(tmp_path, fmt):
     np.testing.assert_array_equal(lf.points, pts.astype(float))
     assert lf.names == H36M_NAMES and lf.frame == "camera" and lf.source == str(tmp_path / "X3D.npy")
     np.testing.assert_array_equal(lf.confidence, np.ones((4, 17)))
+    assert load_lifted(tmp_path / "X3D.npy", fmt=fmt, frame="unknown").frame == "unknown"
     # a leading axis of 1 (one clip) is dropped
     np.save(tmp_path / "batch.npy", pts[None])
     np.testing.assert_array_equal(load_lifted(tmp_path / "batch.npy").points, pts.astype(float))

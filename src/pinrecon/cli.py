@@ -173,7 +173,7 @@ def _with_lifted(tracks, args) -> list:
                          field="--lifted")
     out = []
     for cam, (t, path) in enumerate(zip(tracks, args.lifted)):
-        lf = load_lifted(path, fmt=args.lifted_format, layout=args.lifted_layout, frames=t.T)
+        lf = load_lifted(path, fmt=args.lifted_format, layout=args.lifted_layout, frames=t.T, frame=args.lifted_frame)
         out.append(replace(t, lifted=replace(lf, camera=cam)))
     return out
 
@@ -431,6 +431,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--lifted-format", choices=["npy", "motionbert", "videopose3d", "mmpose3d"],
                    help="format of --lifted (default: from the suffix)")
     r.add_argument("--lifted-layout", help="joint order of --lifted (default h36m17)")
+    r.add_argument("--lifted-frame", choices=["camera", "unknown"],
+                   help="axes of --lifted: 'camera' (the lifters' own output) or 'unknown' (turned into other axes)")
     r.add_argument("--fps-out", type=float, help="reconstruction rate (integer multiple of the tracks' rate)")
     r.add_argument("--seed", choices=["auto", "rest", "keyframes", "planarity", "hypotheses"],
                    help="the start (default auto: the multi-hypothesis start when keyframes are absent or sparse, "

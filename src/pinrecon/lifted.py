@@ -124,6 +124,7 @@ def load_lifted(
     names: Sequence[str] | None = None,
     person: int = 0,
     frames: int | None = None,
+    frame: str | None = None,
 ) -> Lifted:
     """Read a lifter's 3D output file as :class:`Lifted` (``docs/formats.md``, section 11).
 
@@ -134,7 +135,9 @@ def load_lifted(
     an H36M file whose bone lengths cannot be that order is refused. ``person`` picks the
     subject in MMPose files. ``frames``, when given, is the number of frames the lifted
     points must have (the tracks' ``T``). Every problem is an :class:`InputError` naming
-    the file, the field and the frame.
+    the file, the field and the frame. ``frame`` replaces the format's own axes
+    (``"camera"`` for all three) for a file someone has turned into other axes
+    (``"unknown"``: e.g. video2bvh's ``3d_pose.npy``, VideoPose3D's output moved to a Z-up world).
     """
     path = Path(path)
     if not path.exists():
@@ -152,6 +155,6 @@ def load_lifted(
         raise InputError(f"{T} frames of lifted 3D for {frames} frames of tracks", file=path, field="points",
                          frame=min(T, frames))
     try:
-        return Lifted(la.points, la.names, la.confidence, la.frame, la.source, la.camera)
+        return Lifted(la.points, la.names, la.confidence, la.frame if frame is None else frame, la.source, la.camera)
     except InputError as err:
         raise InputError(err.message, file=path, field=err.field, frame=err.frame) from None
