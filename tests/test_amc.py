@@ -192,3 +192,21 @@ def test_cmu_motion_is_continuous_and_in_metres_by_default():
     # the femur is 7.1578 CMU units along (0.34202, -0.939693, 0) (a unit vector to 6 digits): 0.404 m
     femur = np.linalg.norm(kp[:, names.index("ltibia")] - kp[:, names.index("lfemur")], axis=1)
     np.testing.assert_allclose(femur, 7.1578 * np.hypot(0.34202, 0.939693) * 0.0254 / 0.45, rtol=1e-12)
+
+
+@pytest.mark.parametrize(
+    "old, new, field, message",
+    [
+        ("    a b\n", "    a b\n    b a\n", "hierarchy.b", "two parents"),
+        ("    a b\n", "    a b\n    b b\n", "hierarchy.b", "two parents"),
+        ("axis 0 0 90 XYZ", "axis 0 0 90 XYW", "bonedata.a.axis", "three of X, Y, Z"),
+        ("    root a\n", "    root b\n", "hierarchy", "two parents"),
+        ("    root a\n", "", "hierarchy", "no 'root' line"),
+    ],
+)
+def test_broken_skeleton_is_refused_not_looped(tmp_path, old, new, field, message):
+    asf, amc = tiny(tmp_path)
+    asf.write_text(TINY_ASF.replace(old, new))
+    with pytest.raises(InputError) as err:
+        load_amc(asf, amc)
+    assert err.value.file == str(asf) and err.value.field.startswith(field) and message in str(err.value)

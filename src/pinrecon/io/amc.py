@@ -194,15 +194,40 @@ def _axes_matrix(axes: str, angles_deg: np.ndarray) -> np.ndarray:
 
 def _children(skeleton: AsfSkeleton) -> dict[str, list[str]]:
     kids: dict[str, list[str]] = {}
+    seen: set[str] = set()
     for parent, children in skeleton.hierarchy.items():
+        if parent != "root" and parent not in skeleton.bones:
+            raise UnknownNameError("ASF bone", [parent], list(skeleton.bones), file=skeleton.source,
+                                   field="hierarchy")
         for c in children:
             if c not in skeleton.bones:
                 raise UnknownNameError("ASF bone", [c], list(skeleton.bones), file=skeleton.source,
                                        field=f"hierarchy.{parent}")
+            if c in seen:
+                raise InputError(f"bone {c!r} has two parents (or is its own ancestor)", file=skeleton.source,
+                                 field=f"hierarchy.{parent}")
+            seen.add(c)
         kids[parent] = list(children)
     if "root" not in kids:
         raise InputError("the hierarchy has no 'root' line", file=skeleton.source, field="hierarchy")
+    # every bone reached from the root once: a cycle never reaches it
+    reached, stack = set(), list(kids["root"])
+    while stack:
+        b = stack.pop()
+        if b not in reached:
+            reached.add(b)
+            stack.extend(kids.get(b, []))
+    cut = sorted(seen - reached)
+    if cut:
+        raise InputError(f"bone(s) {cut} not reached from the root (a cycle in the hierarchy)",
+                         file=skeleton.source, field="hierarchy")
     return kids
+
+
+def _axis_order(order: str, file, field) -> str:
+    if len(order) != 3 or set(order) - set("XYZ"):
+        raise InputError(f"expected three of X, Y, Z (like XYZ), got {order!r}", file=file, field=field)
+    return order
 
 
 def amc_clip(skeleton: AsfSkeleton, motion: AmcMotion, *, fps: float = CMU_FPS, names: str = "asf") -> BvhClip:
@@ -251,7 +276,8 @@ def amc_clip(skeleton: AsfSkeleton, motion: AmcMotion, *, fps: float = CMU_FPS, 
         chans = ("Zrotation", "Yrotation", "Xrotation") if dofs[b] else ()
         joints.append(BvhJoint(rename(b), parent, offset, chans))
         if dofs[b]:
-            C = _axes_matrix(bone.axis_order, np.asarray(bone.axis_deg, float))
+            C = _axes_matrix(_axis_order(bone.axis_order, skeleton.source, f"bonedata.{b}.axis"),
+                             np.asarray(bone.axis_deg, float))
             M = _axes_matrix("".join(d[1].upper() for d in dofs[b]), to_deg(motion.values[b]))
             bone_R.append(C[None] @ M @ C.T[None])
         children = kids.get(b, [])
