@@ -145,7 +145,7 @@ LAYERS = [
                 "pinrecon.io.coco", "pinrecon.io.openpose", "pinrecon.io.openpose_json", "pinrecon.io.mmpose",
                 "pinrecon.io.people", "pinrecon.io.detections", "pinrecon.io.asf", "pinrecon.joint_limits",
                 "pinrecon.io.tracks_json", "pinrecon.io.calibration", "pinrecon.io.results", "pinrecon.io.trc",
-                "pinrecon.video"]),
+                "pinrecon.video", "pinrecon.io.amc", "pinrecon.io.lifters"]),
     ("rows and solver", ["pinrecon.rows", "pinrecon.weights", "pinrecon.banded", "pinrecon.solver"]),
     ("problem", ["pinrecon.problem", "pinrecon.contact", "pinrecon.identifiability"]),
     ("starts", ["pinrecon.starts", "pinrecon.planarity"]),

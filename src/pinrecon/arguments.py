@@ -50,6 +50,16 @@ def add_reconstruct_options(r, *, inputs=None, camera_required: bool = True) -> 
                    help="image width and height in pixels, for --camera auto")
     r.add_argument("--fov", type=float, help="starting horizontal field of view of --camera auto, degrees (default 60)")
     r.add_argument("--keyframes", help="keyframes JSON")
+    if inputs is not None:  # tracks files in: a lifter's 3D of the same frames may come beside them
+        r.add_argument("--lifted", action="append", metavar="FILE",
+                       help="a lifter's 3D output of the same frames, as learned 3D cues: MotionBERT / VideoPose3D "
+                       ".npy, MMPose 3D JSON (docs/formats.md, section 11); one per --tracks, in order")
+        r.add_argument("--lifted-format", choices=["npy", "motionbert", "videopose3d", "mmpose3d"],
+                       help="format of --lifted (default: from the suffix)")
+        r.add_argument("--lifted-layout", help="joint order of --lifted (default h36m17)")
+        r.add_argument("--lifted-frame", choices=["camera", "unknown"],
+                       help="axes of --lifted: 'camera' (the lifters' own output) or 'unknown' (turned into other "
+                       "axes)")
     r.add_argument("--fps-out", type=float, help="reconstruction rate (integer multiple of the tracks' rate)")
     r.add_argument("--seed", choices=["auto", "rest", "keyframes", "planarity", "hypotheses"],
                    help="the start (default auto: the multi-hypothesis start when keyframes are absent or sparse, "
@@ -104,6 +114,8 @@ def reconstruct_from_args(args, callback=None):
     auto = auto_camera_from_args(args)
     cams = [auto] if auto is not None else cameras_for_tracks(args.camera, args.tracks)
     tracks = [load_tracks(path, fps=args.fps, person=args.person, layout=args.layout) for path in args.tracks]
+    if getattr(args, "lifted", None):
+        tracks = with_lifted(tracks, args)
     fig = figure_from_args(args, tracks)
     if len(tracks) == 1:  # one camera: plain arguments, as the Python API takes them
         tracks, cam = tracks[0], cams[0]
@@ -126,6 +138,23 @@ def reconstruct_from_args(args, callback=None):
         res.extras.update(stability(fig, tracks, cam, kf, result=res, runs=stability_runs,
                                     n_jobs=getattr(args, "jobs", None), **kw).to_extras())
     return res
+
+
+def with_lifted(tracks, args) -> list:
+    """The tracks with the 3D cues of ``--lifted`` (one file per ``--tracks``, in order) attached."""
+    from dataclasses import replace
+
+    from .errors import InputError
+    from .lifted import load_lifted
+
+    if len(args.lifted) != len(tracks):
+        raise InputError(f"{len(args.lifted)} --lifted for {len(tracks)} --tracks: give one per --tracks, in order",
+                         field="--lifted")
+    out = []
+    for cam, (t, path) in enumerate(zip(tracks, args.lifted)):
+        lf = load_lifted(path, fmt=args.lifted_format, layout=args.lifted_layout, frames=t.T, frame=args.lifted_frame)
+        out.append(replace(t, lifted=replace(lf, camera=cam)))
+    return out
 
 
 def figure_from_args(args, tracks=None):

@@ -85,6 +85,23 @@ def cmd_reconstruct(args) -> int:
     return _save_and_report(res, args)
 
 
+def _with_lifted(tracks, args) -> list:
+    """The tracks with the 3D cues of ``--lifted`` (one file per ``--tracks``, in order) attached."""
+    from dataclasses import replace
+
+    from .errors import InputError
+    from .lifted import load_lifted
+
+    if len(args.lifted) != len(tracks):
+        raise InputError(f"{len(args.lifted)} --lifted for {len(tracks)} --tracks: give one per --tracks, in order",
+                         field="--lifted")
+    out = []
+    for cam, (t, path) in enumerate(zip(tracks, args.lifted)):
+        lf = load_lifted(path, fmt=args.lifted_format, layout=args.lifted_layout, frames=t.T, frame=args.lifted_frame)
+        out.append(replace(t, lifted=replace(lf, camera=cam)))
+    return out
+
+
 def _save_and_report(res, args) -> int:
     """Write the result (``--out``), the fitted figure (``--save-figure``) and, where the
     command has it, the camera (``--save-camera``); then the summary and the files written,

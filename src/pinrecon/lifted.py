@@ -15,14 +15,17 @@ use as a prior on the figure's shape: directions between points, per frame, with
 
 from __future__ import annotations
 
+import os
 from collections.abc import Sequence
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
 from .errors import InputError
+from .io.lifters import LIFTER_FORMATS, guess_lifter_format, read_lifter_npy, read_mmpose3d
 
-__all__ = ["Lifted", "LIFTED_FRAMES"]
+__all__ = ["Lifted", "LIFTED_FRAMES", "load_lifted", "LIFTER_FORMATS"]
 
 LIFTED_FRAMES = ("camera", "unknown")
 
@@ -111,3 +114,47 @@ class Lifted:
 
     def __repr__(self):
         return f"Lifted({self.T} frames x {self.K} points, frame={self.frame!r}, source={self.source!r})"
+
+
+def load_lifted(
+    path: str | os.PathLike,
+    *,
+    fmt: str | None = None,
+    layout=None,
+    names: Sequence[str] | None = None,
+    person: int = 0,
+    frames: int | None = None,
+    frame: str | None = None,
+) -> Lifted:
+    """Read a lifter's 3D output file as :class:`Lifted` (``docs/formats.md``, section 11).
+
+    ``fmt``: ``"npy"`` (MotionBERT's ``X3D.npy``, VideoPose3D's ``--viz-export``; also
+    spelled ``"motionbert"``, ``"videopose3d"``) or ``"mmpose3d"`` (MMPose's 3D inferencer
+    JSON); default from the suffix. The joints are in Human3.6M-17 order unless ``layout``
+    (a 17-point :mod:`pinrecon.layouts` name) or ``names`` (one per joint) says otherwise;
+    an H36M file whose bone lengths cannot be that order is refused. ``person`` picks the
+    subject in MMPose files. ``frames``, when given, is the number of frames the lifted
+    points must have (the tracks' ``T``). Every problem is an :class:`InputError` naming
+    the file, the field and the frame. ``frame`` replaces the format's own axes
+    (``"camera"`` for all three) for a file someone has turned into other axes
+    (``"unknown"``: e.g. video2bvh's ``3d_pose.npy``, VideoPose3D's output moved to a Z-up world).
+    """
+    path = Path(path)
+    if not path.exists():
+        raise InputError("file not found", file=path)
+    fmt = guess_lifter_format(path) if fmt is None else str(fmt).lower()
+    if fmt in ("npy", "motionbert", "videopose3d"):
+        la = read_lifter_npy(path, layout=layout, names=names)
+    elif fmt == "mmpose3d":
+        la = read_mmpose3d(path, person=person, layout=layout, names=names)
+    else:
+        raise InputError(f"unknown lifter format {fmt!r}; valid formats are: {', '.join(LIFTER_FORMATS)}",
+                         file=path, field="format")
+    T = len(la.points)
+    if frames is not None and T != frames:
+        raise InputError(f"{T} frames of lifted 3D for {frames} frames of tracks", file=path, field="points",
+                         frame=min(T, frames))
+    try:
+        return Lifted(la.points, la.names, la.confidence, la.frame if frame is None else frame, la.source, la.camera)
+    except InputError as err:
+        raise InputError(err.message, file=path, field=err.field, frame=err.frame) from None

@@ -66,7 +66,8 @@ def _euler_alternative(e: np.ndarray) -> np.ndarray:
 
 
 def continuous_euler(angles_deg: np.ndarray) -> np.ndarray:
-    """Make intrinsic Tait-Bryan angles (F, 3) continuous over frames.
+    """Make intrinsic Tait-Bryan angles (F, 3) continuous over frames (or (F, ..., 3):
+    every triple along the middle axes on its own, in one pass over the frames).
 
     Each frame keeps its rotation; it may switch to the equivalent triple
     ``(a + 180, 180 - b, c + 180)`` and shift any angle by multiples of 360 degrees,
@@ -79,14 +80,10 @@ def continuous_euler(angles_deg: np.ndarray) -> np.ndarray:
     out = e.copy()
     prev = e[0]
     for f in range(1, e.shape[0]):
-        best, best_d = None, math.inf
-        for cand in (e[f], alt[f]):
-            c = cand + 360.0 * np.round((prev - cand) / 360.0)
-            d = float(np.abs(c - prev).sum())
-            if d < best_d - 1e-12:
-                best, best_d = c, d
-        out[f] = best
-        prev = best
+        c0 = e[f] + 360.0 * np.round((prev - e[f]) / 360.0)
+        c1 = alt[f] + 360.0 * np.round((prev - alt[f]) / 360.0)
+        take_alt = np.abs(c1 - prev).sum(axis=-1) < np.abs(c0 - prev).sum(axis=-1) - 1e-12
+        prev = out[f] = np.where(take_alt[..., None], c1, c0)
     return out
 
 

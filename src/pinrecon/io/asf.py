@@ -65,13 +65,16 @@ class AsfBone:
 @dataclass(frozen=True)
 class AsfSkeleton:
     """A parsed ASF file: ``units`` (e.g. ``{"length": "0.45", "angle": "deg"}``),
-    ``bones`` by name, ``hierarchy`` (parent -> children, ``root`` first), ``source``."""
+    ``bones`` by name, ``hierarchy`` (parent -> children, ``root`` first), ``source``,
+    ``root`` (the ``:root`` section: ``order`` e.g. ``("TX", "TY", "TZ", "RX", "RY", "RZ")``,
+    ``axis`` e.g. ``"XYZ"``, ``position`` and ``orientation`` as three numbers each)."""
 
     name: str
     units: dict
     bones: dict
     hierarchy: dict = field(default_factory=dict)
     source: str | None = None
+    root: dict = field(default_factory=dict)
 
 
 _NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
@@ -96,7 +99,7 @@ def read_asf(path: str | os.PathLike) -> AsfSkeleton:
         raise InputError("file not found", file=path) from None
     except (IsADirectoryError, UnicodeDecodeError):
         raise InputError("not a text ASF file", file=path) from None
-    section, name, units, bones, hierarchy = None, "", {}, {}, {}
+    section, name, units, bones, hierarchy, root = None, "", {}, {}, {}, {}
     cur: dict | None = None
     pending_limits = 0
     for lineno, raw in enumerate(text.splitlines(), 1):
@@ -112,6 +115,14 @@ def read_asf(path: str | os.PathLike) -> AsfSkeleton:
         tokens = line.split()
         if section == "units" and len(tokens) >= 2:
             units[tokens[0]] = tokens[1]
+        elif section == "root" and len(tokens) >= 2:
+            key = tokens[0].lower()
+            if key == "order":
+                root["order"] = tuple(t.upper() for t in tokens[1:])
+            elif key == "axis":
+                root["axis"] = tokens[1].upper()
+            elif key in ("position", "orientation"):
+                root[key] = tuple(_floats(tokens[1:], 3, f"root.{key}", path, lineno))
         elif section == "bonedata":
             if tokens[0] == "begin":
                 cur, pending_limits = {"limits": []}, 0
@@ -147,7 +158,7 @@ def read_asf(path: str | os.PathLike) -> AsfSkeleton:
         raise InputError("the last bone has no 'end'", file=path, field="bonedata")
     if not bones:
         raise InputError("no :bonedata found: not an ASF skeleton", file=path)
-    return AsfSkeleton(name, units, bones, hierarchy, str(path))
+    return AsfSkeleton(name, units, bones, hierarchy, str(path), root)
 
 
 def _limit(text, where, file, lineno):
