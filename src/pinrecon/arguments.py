@@ -20,12 +20,12 @@ __all__ = ["add_reconstruct_options", "reconstruct_from_args", "figure_from_args
 WEIGHT_OPTIONS = ("sigma_px", "acc_root_translation", "acc_root_rotation", "acc_joints", "sigma_limits", "loss")
 
 
-def add_reconstruct_options(r, *, inputs=None, camera_required: bool = True) -> None:
+def add_reconstruct_options(r, *, inputs=None, camera_required: bool = True, figure_required: bool = True) -> None:
     """Add ``pinrecon reconstruct``'s options (figure, camera, detector, weights, solver,
     feet, calibration) to the parser ``r``; ``inputs(r)``, when given, adds the input options
     after ``--lock`` (``--tracks`` for reconstruct). ``camera_required=False`` for commands
-    that take the camera elsewhere too (a batch manifest)."""
-    r.add_argument("--figure", required=True, help="'human', a URDF file, or a BVH file (its skeleton)")
+    that take the camera (or the figure) elsewhere too (a batch manifest)."""
+    r.add_argument("--figure", required=figure_required, help="'human', a URDF file, or a BVH file (its skeleton)")
     r.add_argument(
         "--keypoints",
         help="keypoint map JSON, or for 'human' a bundled map: coco17, body25, body25b, halpe26, joints "
