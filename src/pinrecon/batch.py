@@ -312,6 +312,8 @@ def run_clip(clip: Clip, options, out_dir, pictures: bool = True) -> dict:
     folder.mkdir(parents=True, exist_ok=True)
     for stale in (DONE, FAILED):
         (folder / stale).unlink(missing_ok=True)
+    for tmp in folder.glob(".*.tmp*"):  # half-written files of a run killed in flight
+        tmp.unlink(missing_ok=True)
     row = {"clip": clip.name, "status": "failed", "ran": "now", "frames": "", "time_s": "", "reprojection_px": "",
            "flagged_spans": "", "warnings": "", "error": "", "worker_peak_mb": "", "input": clip.path}
     log = [f"pinrecon batch: clip {clip.name} from {clip.path}"]
