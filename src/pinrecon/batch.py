@@ -451,7 +451,7 @@ def run_batch(clips, options, out_dir, *, jobs: int | None = None, scheduler: st
         else:
             todo.append(clip)
     bar = _Bar(len(clips), len(clips) - len(todo), quiet)
-    jobs = max(1, min(jobs or os.cpu_count() or 1, len(todo) or 1))
+    jobs = max(1, min(jobs or _cores(), len(todo) or 1))
     try:
         for row in _execute(todo, options, out, jobs, scheduler, pictures):
             rows[row["clip"]] = row
@@ -460,6 +460,13 @@ def run_batch(clips, options, out_dir, *, jobs: int | None = None, scheduler: st
         report = BatchReport([rows[c.name] for c in clips if c.name in rows], out)
         write_summary(report.rows, out)
     return report
+
+
+def _cores() -> int:
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
 
 
 def _execute(todo, options, out: Path, jobs: int, scheduler: str | None, pictures: bool):
@@ -476,10 +483,13 @@ def _execute(todo, options, out: Path, jobs: int, scheduler: str | None, picture
         from concurrent.futures import ProcessPoolExecutor, as_completed
 
         ctx = multiprocessing.get_context("spawn")  # no threads (or a progress line) forked into the workers
-        with ProcessPoolExecutor(max_workers=jobs, mp_context=ctx, initializer=_pool_init) as pool:
+        pool = ProcessPoolExecutor(max_workers=jobs, mp_context=ctx, initializer=_pool_init)
+        try:
             futures = [pool.submit(run_clip, clip, options, out, pictures) for clip in todo]
             for f in as_completed(futures):
                 yield f.result()
+        finally:  # interrupted: the clips not started are dropped, not run
+            pool.shutdown(wait=True, cancel_futures=True)
 
 
 def _on_dask(todo, options, out: Path, jobs: int, scheduler: str, pictures: bool):
