@@ -223,3 +223,29 @@ def test_without_dask_one_clear_error(inputs, tmp_path, monkeypatch, capsys):
                "--scheduler", "local-dask", "--quiet", *SOLVE])
     assert rc == 2
     assert "pip install 'pinrecon[batch]'" in capsys.readouterr().err
+
+
+def test_a_video_clip_goes_through_the_video_tracker(inputs, reference, tmp_path, monkeypatch):
+    """A video clip is tracked by pinrecon.video.track_video (here a stand-in returning the
+    walk's tracks, so the result must equal that clip's single reconstruct) and solved from
+    the tracks file it writes."""
+    import types
+
+    from pinrecon.tracks import load_tracks
+
+    seen = []
+
+    def track_video(path, *, fps=None):
+        seen.append(path)
+        return load_tracks(inputs / "walk_a.json")
+
+    fake = types.SimpleNamespace(track_video=track_video,
+                                 video_info=lambda path, fps=None: types.SimpleNamespace(width=1280, height=720))
+    monkeypatch.setitem(sys.modules, "pinrecon.video", fake)
+    (tmp_path / "walk_a.mp4").write_bytes(b"")
+    out = tmp_path / "out"
+    assert main(["batch", str(tmp_path / "walk_a.mp4"), "--out", str(out), "--camera", str(inputs / "camera.json"),
+                 "--jobs", "1", "--quiet", "--no-pictures", *SOLVE]) == 0
+    assert seen == [str(tmp_path / "walk_a.mp4")]
+    assert (out / "walk_a" / "tracks.json").is_file()
+    _assert_equal_to(out, {"walk_a": reference["walk_a"]})

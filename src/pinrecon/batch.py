@@ -286,20 +286,31 @@ def _one_line(exc: BaseException) -> str:
     return " ".join(text.split())[:500]
 
 
-def _video_tracks(clip: Clip, options, folder: Path) -> str:
-    """Tracks of a video clip, from ``pinrecon video``'s tracker when this version has it."""
-    try:
-        from importlib import import_module
+def _video_tracks(clip: Clip, a, folder: Path) -> None:
+    """Track a video clip with ``pinrecon video``'s tracker (:func:`pinrecon.video.track_video`,
+    the ``video`` extra) into ``folder/tracks.json`` and point ``a`` at it, as ``pinrecon
+    video`` does: the tracks' own frame rate, ``--camera auto`` unless a camera was given,
+    the video's frame size for it. A version without the tracker: one clear error."""
+    from importlib import import_module
 
+    try:
         video = import_module("pinrecon.video")
-        track = getattr(video, "track_video")
+        track, info_of = video.track_video, video.video_info
     except (ImportError, AttributeError):
         raise InputError("videos are not supported by pinrecon batch yet (this version has no video tracker): "
                          "track the video with a detector (OpenPose, MMPose ...) and give its output",
                          file=clip.path) from None
+    info = info_of(clip.path, fps=a.fps)
+    tracks = track(clip.path, fps=a.fps)
+    if not tracks.observed.any():
+        raise InputError("the tracker found no person in any frame", file=clip.path)
     out = folder / "tracks.json"
-    track(clip.path, out)
-    return str(out)
+    tracks.save(out)
+    a.tracks, a.fps = [str(out)], None
+    if not a.camera:
+        a.camera = ["auto"]
+    if any(c.split(":")[0] == "auto" for c in a.camera) and a.image_size is None:
+        a.image_size = [float(info.width), float(info.height)]
 
 
 def run_clip(clip: Clip, options, out_dir, pictures: bool = True) -> dict:
@@ -353,16 +364,18 @@ def _reconstruct_clip(clip: Clip, options, folder: Path, pictures: bool, log: li
     from .result import uncertain_limb_spans
 
     a = clip_options(clip, options)
-    if clip.kind == "video":
-        a.tracks = [_video_tracks(clip, options, folder)]
     if not a.figure:
         raise InputError("no figure: give --figure, or a figure column in the manifest", field="--figure")
+    written = []
+    if clip.kind == "video":
+        _video_tracks(clip, a, folder)
+        written.append(folder / "tracks.json")
     if not a.camera:
         raise InputError("no camera: give --camera, or a camera column in the manifest", field="--camera")
     res = reconstruct_from_args(a)
     npz = folder / "result.npz"
     res.save(npz)
-    written = [npz] + export_result(npz, bvh=folder / "result.bvh", csv=folder / "result.csv",
+    written += [npz] + export_result(npz, bvh=folder / "result.bvh", csv=folder / "result.csv",
                                     trc=folder / "result.trc")
     if pictures:
         written += _strip(res, folder, log)
