@@ -9,6 +9,7 @@ import argparse
 import asyncio
 import csv
 import json
+import os
 import shutil
 import sys
 import threading
@@ -119,6 +120,17 @@ def test_resume_skips_finished_and_redoes_incomplete(serial, inputs, reference, 
                  "--jobs", "1", "--quiet", "--no-pictures", "--redo", *SOLVE]) == 0
     assert _summary(out)["walk_a"]["ran"] == "now"
     assert _same(_npz(out / "walk_a" / "result.npz"), reference["walk_a"])
+    # a changed input file (here only its modification time) runs its clip again
+    tracks = inputs / "walk_a.json"
+    st = tracks.stat()
+    again = ["batch", str(tracks), "--out", str(out), "--camera", str(inputs / "camera.json"), "--jobs", "1",
+             "--quiet", "--no-pictures", *SOLVE]
+    assert main(again) == 0 and _summary(out)["walk_a"]["ran"] == "earlier"
+    os.utime(tracks, ns=(st.st_atime_ns, st.st_mtime_ns + 1_000_000_000))
+    try:
+        assert main(again) == 0 and _summary(out)["walk_a"]["ran"] == "now"
+    finally:
+        os.utime(tracks, ns=(st.st_atime_ns, st.st_mtime_ns))
 
 
 def test_a_failing_clip_is_recorded_and_the_rest_go_on(inputs, reference, tmp_path, capsys):

@@ -247,10 +247,24 @@ def clip_options(clip: Clip, options):
     return a
 
 
+def _stamp(path) -> list:
+    """Size and modification time of a file (of each file in a folder): a changed input
+    changes the clip's fingerprint."""
+    p = Path(path)
+    try:
+        files = sorted(f for f in p.iterdir() if f.is_file()) if p.is_dir() else [p]
+        return [[f.name, f.stat().st_size, f.stat().st_mtime_ns] for f in files]
+    except OSError:
+        return []
+
+
 def fingerprint(clip: Clip, options) -> str:
-    """A hash of everything that decides a clip's result (its options and input path)."""
+    """A hash of everything that decides a clip's result: its options, and the paths, sizes
+    and modification times of its input, camera, keyframes and figure files."""
     a = vars(clip_options(clip, options))
     keep = {k: a[k] for k in sorted(a) if k not in _NOT_RESULT}
+    files = [clip.path, *(a.get("camera") or []), a.get("keyframes"), a.get("figure")]
+    keep["_files"] = [_stamp(f) for f in files if f and Path(f).exists()]
     return hashlib.sha256(json.dumps(keep, sort_keys=True, default=str).encode()).hexdigest()[:16]
 
 
