@@ -261,3 +261,17 @@ def test_a_video_clip_goes_through_the_video_tracker(inputs, reference, tmp_path
     assert seen == [str(tmp_path / "walk_a.mp4")]
     assert (out / "walk_a" / "tracks.json").is_file()
     _assert_equal_to(out, {"walk_a": reference["walk_a"]})
+
+
+def test_a_dead_worker_is_a_failed_row():
+    """A task whose worker died (BrokenProcessPool, Dask's KilledWorker) is that clip's failure."""
+    from concurrent.futures import Future
+    from concurrent.futures.process import BrokenProcessPool
+
+    from pinrecon.batch import SUMMARY_COLUMNS, _row_of
+
+    f = Future()
+    f.set_exception(BrokenProcessPool("A process in the process pool was terminated abruptly"))
+    row = _row_of(f, Clip("walk_a", "tracks", "walk_a.json"))
+    assert set(row) == set(SUMMARY_COLUMNS)
+    assert row["status"] == "failed" and row["error"].startswith("the worker running this clip died: BrokenProcessPool")

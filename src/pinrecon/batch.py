@@ -512,11 +512,22 @@ def _execute(todo, options, out: Path, jobs: int, scheduler: str | None, picture
         ctx = multiprocessing.get_context("spawn")  # no threads (or a progress line) forked into the workers
         pool = ProcessPoolExecutor(max_workers=jobs, mp_context=ctx, initializer=_pool_init)
         try:
-            futures = [pool.submit(run_clip, clip, options, out, pictures) for clip in todo]
+            futures = {pool.submit(run_clip, clip, options, out, pictures): clip for clip in todo}
             for f in as_completed(futures):
-                yield f.result()
+                yield _row_of(f, futures[f])
         finally:  # interrupted: the clips not started are dropped, not run
             pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _row_of(future, clip: Clip) -> dict:
+    """A finished task's row; a worker that died with its clip (killed, out of memory) makes
+    a failed row, and the batch goes on."""
+    try:
+        return future.result()
+    except Exception as exc:  # noqa: BLE001 - the worker's end, not the clip's error
+        return {"clip": clip.name, "status": "failed", "ran": "now", "frames": "", "time_s": "",
+                "reprojection_px": "", "flagged_spans": "", "warnings": "", "worker_peak_mb": "", "input": clip.path,
+                "error": "the worker running this clip died: " + _one_line(exc)}
 
 
 def _on_dask(todo, options, out: Path, jobs: int, scheduler: str, pictures: bool):
@@ -537,10 +548,10 @@ def _on_dask(todo, options, out: Path, jobs: int, scheduler: str, pictures: bool
         except (OSError, TimeoutError, ValueError) as exc:
             raise InputError(f"cannot reach the Dask scheduler: {exc}", field="--scheduler") from None
     try:
-        futures = [client.submit(run_clip, clip, options, str(out), pictures, key=f"pinrecon-batch-{clip.name}-"
-                                 f"{fingerprint(clip, options)}", pure=False) for clip in todo]
+        futures = {client.submit(run_clip, clip, options, str(out), pictures, key=f"pinrecon-batch-{clip.name}-"
+                                 f"{fingerprint(clip, options)}", pure=False): clip for clip in todo}
         for f in as_completed(futures):
-            yield f.result()
+            yield _row_of(f, futures[f])
     finally:
         client.close()
         if cluster is not None:
