@@ -219,6 +219,13 @@ def test_discovery_and_manifest(inputs, tmp_path):
     assert clips[1] == Clip("walk_b", "tracks", str(inputs / "walk_b.json"), str(inputs / "camera.json"), None, None,
                             30.0)
     assert [c.name for c in discover([str(inputs / "walk_*.json")])] == list(CLIPS)
+    pose = tmp_path / "trials" / "trial1_json"  # an OpenPose folder: one clip, not a folder of clips
+    pose.mkdir(parents=True)
+    for t in range(3):
+        (pose / f"trial1_{t:012d}_keypoints.json").write_text(json.dumps({"version": 1.3, "people": []}))
+    (tmp_path / "trials" / "notes").mkdir()
+    assert discover([tmp_path / "trials"]) == [Clip("trial1_json", "tracks", str(pose))]
+    assert discover([pose]) == [Clip("trial1_json", "tracks", str(pose))]
     (tmp_path / "walk_a.json").write_text("{}")
     with pytest.raises(InputError, match="two clips would write walk_a/"):
         discover([inputs, tmp_path / "walk_a.json"])
