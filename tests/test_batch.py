@@ -155,10 +155,7 @@ def test_a_failing_clip_is_recorded_and_the_rest_go_on(inputs, reference, tmp_pa
     assert rows["bad"]["status"] == "failed" and "'tail'" in rows["bad"]["error"] and "\n" not in rows["bad"]["error"]
     assert not (out / "bad" / "done.json").exists() and (out / "bad" / "failed.json").exists()
     assert "Traceback" in (out / "bad" / "log.txt").read_text()
-    from importlib.util import find_spec
-
-    if find_spec("pinrecon.video") is None:  # until pinrecon video is there, videos are one clear error
-        assert rows["clip"]["status"] == "failed" and "not supported" in rows["clip"]["error"]
+    assert rows["clip"]["status"] == "failed" and "clip.mp4" in rows["clip"]["error"]  # no video in that file
     err = capsys.readouterr().err
     assert "3 clips, 3 run now, 2 failed" in err and "bad: " in err
     assert "failed" in (out / "summary.html").read_text()

@@ -301,19 +301,13 @@ def _one_line(exc: BaseException) -> str:
 
 
 def _video_tracks(clip: Clip, a, folder: Path) -> None:
-    """Track a video clip with ``pinrecon video``'s tracker (:func:`pinrecon.video.track_video`,
-    the ``video`` extra) into ``folder/tracks.json`` and point ``a`` at it, as ``pinrecon
-    video`` does: the tracks' own frame rate, ``--camera auto`` unless a camera was given,
-    the video's frame size for it. A version without the tracker: one clear error."""
-    from importlib import import_module
+    """Track a video clip as ``pinrecon track`` does (:func:`pinrecon.video.track_video`, the
+    ``video`` extra) into ``folder/tracks.json`` and point ``a`` at it, as ``pinrecon video``
+    does: the tracks' own frame rate, ``--camera auto`` unless a camera was given, the video's
+    frame size for it."""
+    from .video import track_video as track
+    from .video import video_info as info_of
 
-    try:
-        video = import_module("pinrecon.video")
-        track, info_of = video.track_video, video.video_info
-    except (ImportError, AttributeError):
-        raise InputError("videos are not supported by pinrecon batch yet (this version has no video tracker): "
-                         "track the video with a detector (OpenPose, MMPose ...) and give its output",
-                         file=clip.path) from None
     info = info_of(clip.path, fps=a.fps)
     tracks = track(clip.path, fps=a.fps)
     if not tracks.observed.any():
