@@ -79,10 +79,11 @@ class _Progress:
 
 
 def cmd_reconstruct(args) -> int:
+    outs = _outputs(args)
     progress = _Progress(args.quiet, args.max_iterations)
     res = reconstruct_from_args(args, callback=progress)
     progress.close()
-    return _save_and_report(res, args)
+    return _save_and_report(res, args, outs)
 
 
 def _with_lifted(tracks, args) -> list:
@@ -102,16 +103,33 @@ def _with_lifted(tracks, args) -> list:
     return out
 
 
-def _save_and_report(res, args) -> int:
-    """Write the result (``--out``), the fitted figure (``--save-figure``) and, where the
-    command has it, the camera (``--save-camera``); then the summary and the files written,
-    unless ``--quiet``."""
-    res.save(args.out)
-    written = [args.out]
+def _outputs(args):
+    """Every file the command will write (``--out``, ``--save-figure`` and its keypoint map,
+    ``--save-camera``), checked writable before the work (:class:`pinrecon.io.atomic.Outputs`)."""
+    from pathlib import Path
+
+    from .io.atomic import Outputs
+
+    outs = Outputs(fields={"--out": args.out, "--save-figure": args.save_figure,
+                           "--save-camera": getattr(args, "save_camera", None)})
     if args.save_figure:
-        written += res.save_figure(args.save_figure)
-    if getattr(args, "save_camera", None):
-        written += _save_cameras(res, args.save_camera)
+        p = Path(args.save_figure)
+        outs.add(p.with_name(p.stem + ".keypoints.json"), field="--save-figure")
+    outs.check()
+    return outs
+
+
+def _save_and_report(res, args, outs) -> int:
+    """Write the result (``--out``), the fitted figure (``--save-figure``) and, where the
+    command has it, the camera (``--save-camera``), all or none (``outs.commit()``); then the
+    summary and the files written, unless ``--quiet``."""
+    with outs.commit():
+        res.save(args.out)
+        written = [args.out]
+        if args.save_figure:
+            written += res.save_figure(args.save_figure)
+        if getattr(args, "save_camera", None):
+            written += _save_cameras(res, args.save_camera)
     if not args.quiet:
         print(res.summary(), file=sys.stderr)
         for path in written:
@@ -126,6 +144,7 @@ def cmd_fit_markers(args) -> int:
     from .solver import SolverOptions
     from .tracks import Markers, load_keyframes
 
+    outs = _outputs(args)
     markers = load_trc(args.markers, up=args.up, names="pinrecon")
     unsure = [n for n in markers.names if n in POSE2SIM_AMBIGUOUS]
     if unsure:  # said, not guessed: which point they are depends on the skeleton that wrote them
@@ -141,7 +160,7 @@ def cmd_fit_markers(args) -> int:
                               options=SolverOptions(max_iterations=args.max_iterations), callback=progress,
                               calibrate=args.calibrate)
     progress.close()
-    return _save_and_report(res, args)
+    return _save_and_report(res, args, outs)
 
 
 def _save_cameras(res, path) -> list[str]:
