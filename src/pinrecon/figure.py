@@ -181,11 +181,10 @@ class Figure:
             joint origin, named as the joint.
         root : ``"free"`` (free-flyer root, SE(3)) or ``"fixed"`` (base fixed to the world).
         """
+        from .io.jsonfile import read_text
+
         path = Path(path)
-        try:
-            xml = path.read_text()
-        except FileNotFoundError:
-            raise InputError("file not found", file=path) from None
+        xml = read_text(path)
         return cls.from_urdf_string(xml, keypoints, root=root, name=name, source=str(path))
 
     @classmethod

@@ -12,7 +12,6 @@ readers' notes (broken frames, people followed, layout chosen) as one
 
 from __future__ import annotations
 
-import json
 import math
 import os
 import warnings
@@ -248,9 +247,11 @@ def guess_tracks_format(path: str | os.PathLike) -> str:
         return "openpose"
     if path.suffix.lower() == ".npz":
         return "npz"
+    from .io.jsonfile import read_json
+
     try:
-        data = json.loads(path.read_text())
-    except (OSError, UnicodeDecodeError, ValueError, RecursionError):
+        data = read_json(path)
+    except InputError:
         return "json"
     if isinstance(data, dict) and "people" in data and "points" not in data:
         return "openpose"

@@ -30,6 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
+from .jsonfile import read_text
 
 __all__ = ["CMU_BVH_FROM_ASF", "NO_CAPTURED_LIMITS", "AsfBone", "AsfSkeleton", "bvh_limits_from_asf", "read_asf"]
 
@@ -93,12 +94,7 @@ def _floats(tokens, n, where, file, lineno):
 def read_asf(path: str | os.PathLike) -> AsfSkeleton:
     """Read an ASF skeleton; errors name the file, the bone and the line."""
     path = Path(path)
-    try:
-        text = path.read_text()
-    except FileNotFoundError:
-        raise InputError("file not found", file=path) from None
-    except (IsADirectoryError, UnicodeDecodeError):
-        raise InputError("not a text ASF file", file=path) from None
+    text = read_text(path)
     section, name, units, bones, hierarchy, root = None, "", {}, {}, {}, {}
     cur: dict | None = None
     pending_limits = 0

@@ -15,6 +15,7 @@ import numpy as np
 
 from ..errors import InputError, UnknownNameError
 from .atomic import atomic_write_text
+from .jsonfile import read_text
 
 __all__ = ["BvhJoint", "BvhClip", "read_bvh", "static_joints", "write_bvh_text"]
 
@@ -95,12 +96,7 @@ def _tokenize(text: str):
 def read_bvh(path: str | os.PathLike) -> BvhClip:
     """Parse a BVH file. Errors name the file, the section or joint, and the frame."""
     path = Path(path)
-    try:
-        text = path.read_text(errors="replace")
-    except FileNotFoundError:
-        raise InputError("file not found", file=path) from None
-    except IsADirectoryError:
-        raise InputError("is a directory, expected a BVH file", file=path) from None
+    text = read_text(path, errors="replace")
     head, sep, motion = text.partition("MOTION")
     if not sep:
         # maybe lowercase or missing entirely

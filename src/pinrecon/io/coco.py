@@ -27,7 +27,6 @@ when nothing is left. :func:`read_coco` returns plain
 
 from __future__ import annotations
 
-import json
 import os
 import re
 from collections import Counter
@@ -62,8 +61,8 @@ def is_coco_json(path: str | os.PathLike) -> bool:
     key (dataset). The whole file is parsed: real COCO files list thousands of
     ``images`` before ``annotations``."""
     try:
-        data = json.loads(Path(path).read_text())
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError, RecursionError, ValueError):
+        data = read_json(path)
+    except InputError:
         return False
     return coco_kind(data) is not None
 

@@ -21,7 +21,7 @@ import numpy as np
 
 from ..errors import InputError
 from .atomic import atomic_path, atomic_write_text
-from .jsonfile import read_json
+from .jsonfile import read_json, read_npz
 from .track_arrays import LiftedArrays, TrackArrays
 
 __all__ = ["read_tracks_json", "read_tracks_npz", "write_tracks", "tracks_dict", "lifted_dict"]
@@ -138,11 +138,7 @@ def read_tracks_npz(path: str | os.PathLike) -> TrackArrays:
     path = Path(path)
     if not zipfile.is_zipfile(path):
         raise InputError("not an NPZ file (an NPZ is a zip archive of .npy arrays)", file=path)
-    try:
-        with np.load(path, allow_pickle=False) as z:
-            data = {k: z[k] for k in z.files}
-    except Exception as exc:  # noqa: BLE001 - a damaged archive fails in zipfile, zlib or numpy's .npy header parser
-        raise InputError(f"not a readable NPZ file ({type(exc).__name__}: {exc})", file=path) from None
+    data = read_npz(path)
     for key in ("fps", "names", "points"):
         _require(data, key, path)
     fps = data["fps"]

@@ -39,6 +39,7 @@ import numpy as np
 from ..errors import InputError
 from ..tracks import Markers
 from .atomic import atomic_write_text
+from .jsonfile import read_text
 
 __all__ = ["POSE2SIM_AMBIGUOUS", "POSE2SIM_NAMES", "load_trc", "write_trc", "z_up_rotation"]
 
@@ -81,10 +82,7 @@ def load_trc(path: str | os.PathLike, *, up: str = "y", names: str = "file") -> 
     if names not in ("file", "pinrecon"):
         raise InputError(f"must be 'file' or 'pinrecon', got {names!r}", field="names")
     R = z_up_rotation(up)
-    try:
-        rows = path.read_text(encoding="utf-8", errors="replace").splitlines()
-    except OSError as exc:
-        raise InputError(f"cannot read: {exc.strerror or exc}", file=path) from None
+    rows = read_text(path, errors="replace").splitlines()
     if len(rows) < 5 or not rows[0].startswith("PathFileType"):
         raise InputError("not a TRC file: the first line does not start with PathFileType", file=path,
                          field="PathFileType")

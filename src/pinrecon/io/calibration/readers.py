@@ -38,7 +38,7 @@ import numpy as np
 
 from ...cameras import Camera, Perspective, camera_from_dict
 from ...errors import InputError, UnknownNameError
-from ..jsonfile import read_json
+from ..jsonfile import read_json, read_text
 from .opencv_storage import decode_matrices, parse_xml, parse_yaml
 
 __all__ = [
@@ -118,13 +118,11 @@ def _unsupported(path, why: str) -> InputError:
 
 def _read_text(path: Path) -> str:
     try:
-        return path.read_text(encoding="utf-8-sig")
-    except FileNotFoundError:
-        raise InputError("file not found", file=path) from None
-    except IsADirectoryError:
-        raise InputError("is a folder, expected a calibration file", file=path) from None
-    except UnicodeDecodeError:
-        raise _unsupported(path, "is not a text file") from None
+        return read_text(path)
+    except InputError as exc:
+        if "UTF-8" in exc.message:
+            raise _unsupported(path, "is not a text file") from None
+        raise
 
 
 def _detect(path: Path, text: str) -> str:
