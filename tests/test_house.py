@@ -139,13 +139,13 @@ def test_file_size(name):
 # the layers below it, never one above.
 LAYERS = [
     ("base", ["pinrecon.errors", "pinrecon._resources", "pinrecon.rotations", "pinrecon.io", "pinrecon.io.atomic",
-              "pinrecon.io.jsonfile", "pinrecon.io.track_arrays", "pinrecon.kinematics", "pinrecon.datasets"]),
+              "pinrecon.io.jsonfile", "pinrecon.io.fields", "pinrecon.io.track_arrays", "pinrecon.kinematics", "pinrecon.datasets"]),
     ("domain", ["pinrecon.figure_files", "pinrecon.figure", "pinrecon.figure_bvh", "pinrecon.cameras", "pinrecon.floor", "pinrecon.tracks", "pinrecon.lifted", "pinrecon.layouts",
                 "pinrecon.proportions", "pinrecon.io.bvh_format", "pinrecon.io.bvh_urdf", "pinrecon.io.bvh",
                 "pinrecon.io.coco", "pinrecon.io.openpose", "pinrecon.io.openpose_json", "pinrecon.io.mmpose",
                 "pinrecon.io.people", "pinrecon.io.detections", "pinrecon.io.asf", "pinrecon.joint_limits",
                 "pinrecon.io.tracks_json", "pinrecon.io.calibration", "pinrecon.io.results", "pinrecon.io.trc",
-                "pinrecon.video", "pinrecon.io.amc", "pinrecon.io.lifters"]),
+                "pinrecon.video", "pinrecon.io.amc", "pinrecon.io.lifters", "pinrecon.io.motion"]),
     ("rows and solver", ["pinrecon.rows", "pinrecon.weights", "pinrecon.banded", "pinrecon.solver"]),
     ("problem", ["pinrecon.problem", "pinrecon.contact", "pinrecon.identifiability"]),
     ("starts", ["pinrecon.starts", "pinrecon.planarity"]),

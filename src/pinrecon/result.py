@@ -20,11 +20,13 @@ FAULT_EXTRAS_PREFIXES = ("hypothesis_", "repaired_", "outlier_", "prior_", "solu
                          "mirror_chains", "mirror_uncertain", "stability_")
 from .errors import InputError
 from .figure import Figure, parse_keypoint_entries
-from .io.results import load_result_npz, save_result_npz
+from .io.fields import string_field
+from .io.motion import check_motion
+from .io.results import load_result_npz, save_result_npz, text_json
 from .rows.posture import unused_priors
 from .solver import SolveResult
 
-__all__ = ["Result", "StageReport", "hypothesis_spans", "load_result"]
+__all__ = ["Result", "StageReport", "check_motion", "hypothesis_spans", "load_result"]
 
 
 @dataclass
@@ -377,26 +379,12 @@ class Result:
         )
 
 
-def _calibration(d, path) -> dict:
-    """The ``calibration`` JSON of a result file ({} when absent)."""
-    if "calibration" not in d:
-        return {}
-    try:
-        out = json.loads(str(d["calibration"]))
-    except ValueError as exc:
-        raise InputError(f"not JSON ({exc})", file=path, field="calibration") from None
-    if not isinstance(out, dict):
-        raise InputError("must be a JSON object", file=path, field="calibration")
-    return out
-
-
 def _stages(d, path) -> list[StageReport]:
     """The ``stages`` JSON of a result file ([] when absent)."""
-    if "stages" not in d:
-        return []
+    items = text_json(d, "stages", file=path, default=[], expect=list)
     try:
-        return [StageReport.from_dict(x) for x in json.loads(str(d["stages"]))]
-    except (ValueError, TypeError, KeyError) as exc:
+        return [StageReport.from_dict(x) for x in items]
+    except (ValueError, TypeError, KeyError, OverflowError) as exc:
         raise InputError(f"not a list of stage reports ({exc})", file=path, field="stages") from None
 
 
@@ -423,28 +411,41 @@ def _identifiability_lines(ident, groups: list[str]) -> list[str]:
 
 
 def load_result(path) -> Result:
-    """Read a result NPZ back into a :class:`Result` (figure rebuilt from the embedded URDF)."""
+    """Read a result NPZ back into a :class:`Result` (figure rebuilt from the embedded URDF).
+    Every field is checked first (:func:`pinrecon.io.results.load_result_npz`, then the
+    motion against the figure: :func:`check_motion`); a bad file is one InputError naming
+    the field and frame."""
     d = load_result_npz(path)
     fig = None
-    if "figure_urdf" in d and str(d["figure_urdf"]):
-        kps = parse_keypoint_entries(json.loads(str(d["figure_keypoints"]))["keypoints"], file=path)
-        limits = {k: tuple(v) for k, v in json.loads(str(d.get("figure_limits", "{}"))).items()}
+    if string_field(d, "figure_urdf", file=path, required=False):
+        kp_map = text_json(d, "figure_keypoints", file=path, default={}, expect=dict)
+        if not isinstance(kp_map.get("keypoints"), (dict, list)):
+            raise InputError("must hold {'keypoints': ...}", file=path, field="figure_keypoints")
+        kps = parse_keypoint_entries(kp_map["keypoints"], file=path)
+        limits = text_json(d, "figure_limits", file=path, default={}, expect=dict)
+        for k, v in limits.items():
+            if not (isinstance(v, list) and len(v) == 2 and all(_is_number(x) for x in v)):
+                raise InputError(f"joint {k!r}: a limit must be [lower, upper] numbers", file=path,
+                                 field="figure_limits")
         fig = Figure.from_urdf_string(
-            str(d["figure_urdf"]),
+            string_field(d, "figure_urdf", file=path),
             kps,
-            root="free" if bool(d["figure_floating"]) else "fixed",
-            name=str(d["figure_name"]),
-            limits=limits,
-            meta=json.loads(str(d["figure_meta"])),
+            root="free" if bool(d.get("figure_floating", True)) else "fixed",
+            name=string_field(d, "figure_name", file=path, required=False, default="figure"),
+            limits={k: tuple(v) for k, v in limits.items()},
+            meta=text_json(d, "figure_meta", file=path, default={}, expect=dict),
             source=str(path),
         )
-    cam = None
-    if "camera" in d and str(d["camera"]):
-        cam = camera_from_dict(json.loads(str(d["camera"])), file=path)
-    cams = [camera_from_dict(c, file=path) for c in json.loads(str(d["cameras"]))] if "cameras" in d else []
-    cam_names = json.loads(str(d["camera_names"])) if "camera_names" in d else []
+    cam_dict = text_json(d, "camera", file=path, default=None, expect=dict)
+    cam = camera_from_dict(cam_dict, file=path) if cam_dict is not None else None
+    cams = [camera_from_dict(c, file=path) for c in text_json(d, "cameras", file=path, default=[], expect=list)]
+    cam_names = [str(n) for n in text_json(d, "camera_names", file=path, default=[], expect=list)]
     fps = float(d["fps"]) if "fps" in d else (1.0 / np.diff(d["times"]).mean() if len(d["times"]) > 1 else 1.0)
     T = d["q"].shape[0]
+    if fig is not None:
+        check_motion(fig, d["q"], fps, file=path)
+        if list(map(str, d["keypoint_names"])) != list(fig.keypoint_names):
+            raise InputError("do not match the embedded figure's keypoints", file=path, field="keypoint_names")
     return Result(
         figure=fig,
         q=d["q"],
@@ -459,9 +460,13 @@ def load_result(path) -> Result:
         camera_names=cam_names,
         reprojection_error_px_per_camera=d.get("reprojection_error_px_per_camera"),
         extras={k: d[k] for k in d if k in FOOT_EXTRAS or k.startswith(FAULT_EXTRAS_PREFIXES)},
-        calibration=_calibration(d, path),
+        calibration=text_json(d, "calibration", file=path, default={}, expect=dict),
         stages=_stages(d, path),
     )
+
+
+def _is_number(x) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool)
 
 
 def hypothesis_spans(extras) -> tuple[list[str], np.ndarray, float]:

@@ -25,6 +25,7 @@ from ..figure import Figure
 from ..rotations import continuous_euler, euler_to_matrix, matrix_to_euler, matrix_to_quat_xyzw, quat_xyzw_to_matrix
 from .bvh_format import BvhClip, BvhJoint, read_bvh, static_joints, write_bvh_text
 from .bvh_urdf import urdf_figure_to_bvh
+from .motion import check_motion
 
 __all__ = [
     "BvhJoint",
@@ -203,9 +204,7 @@ def write_bvh(path: str | os.PathLike, figure, q: np.ndarray, fps: float, *, uni
         raise InputError(f"expected q of shape (frames, {figure.nq}), got {q.shape}", file=path, field="q")
     if not (fps > 0):
         raise InputError(f"must be positive, got {fps}", file=path, field="fps")
-    bad = np.where(~np.all(np.isfinite(q), axis=1))[0]
-    if bad.size:
-        raise InputError("NaN or infinite configuration value", file=path, field="q", frame=int(bad[0]))
+    check_motion(figure, q, fps, file=path)
     u = bvh_unit(unit)
     R = t = None
     if world is not None:

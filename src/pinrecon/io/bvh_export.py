@@ -178,12 +178,10 @@ def export_result(
     written = []
     if bvh is not None:
         bvh = Path(bvh)
-        bvh.parent.mkdir(parents=True, exist_ok=True)
         write_bvh(bvh, result.figure, result.q, result.fps, unit=units, world=world)
         written.append(bvh)
     if csv is not None:
         csv = Path(csv)
-        csv.parent.mkdir(parents=True, exist_ok=True)
         q = result.q
         if world is not None and result.figure.floating:
             q = transform_motion(result.figure, q, *world)

@@ -37,6 +37,7 @@ from ..errors import InputError
 from ..figure import Figure
 from ..rotations import continuous_euler, matrix_to_euler, quat_xyzw_to_matrix
 from .atomic import atomic_write_text
+from .motion import check_motion
 
 __all__ = ["write_csv", "motion_table", "motion_columns"]
 
@@ -151,6 +152,11 @@ def write_csv(
         figure = res.figure
         q = res.q if q is None else q
         times = res.times if times is None else times
+        fps = res.fps if fps is None else fps
+    check_motion(figure, np.atleast_2d(q), 1.0 if fps is None else fps, file=path)
+    times = np.asarray(times, float)
+    if not np.all(np.isfinite(times)):
+        raise InputError("must be finite", file=path, field="times")
     names, table = motion_table(figure, q, times)
 
     if precision is None:
@@ -164,7 +170,5 @@ def write_csv(
     w.writerow(names)
     for row in table:
         w.writerow([fmt(float(x)) for x in row])
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    atomic_write_text(path, buf.getvalue())
+    atomic_write_text(Path(path), buf.getvalue())
     return names
