@@ -45,6 +45,9 @@ __all__ = [
 
 TRACKS_FORMATS = ("json", "npz", "openpose", "coco", "alphapose", "mmpose")
 FPS_RANGE = (1e-3, 1e6)  # a frame rate outside it makes the time step under- or overflow
+KEYFRAME_MAX_VALUE = 1e4  # metres or radians: a larger keyframe value is an error, not a pose
+KEYFRAME_SIGMA_RANGE = (1e-9, 1e6)  # outside it the keyframe's weight under- or overflows
+KEYFRAME_MAX_FRAME = 1e9
 
 
 def _finite(x) -> bool:
@@ -358,10 +361,16 @@ class Keyframes:
                 or int(frame) != frame
             ):
                 raise InputError(f"'frame' must be an integer, got {frame!r}", file=source, field=fld)
+            if abs(frame) > KEYFRAME_MAX_FRAME:
+                raise InputError(f"'frame' {frame!r} is beyond any clip (at most {KEYFRAME_MAX_FRAME:g})",
+                                 file=source, field=fld)
             frame = int(frame)
             sigma = item.get("sigma", 0.01)
             if isinstance(sigma, bool) or not isinstance(sigma, (int, float)) or not (sigma > 0) or not _finite(sigma):
                 raise InputError(f"'sigma' must be a positive number, got {sigma!r}", file=source, field=fld, frame=frame)
+            if not KEYFRAME_SIGMA_RANGE[0] <= sigma <= KEYFRAME_SIGMA_RANGE[1]:
+                raise InputError(f"'sigma' must be in [{KEYFRAME_SIGMA_RANGE[0]:g}, {KEYFRAME_SIGMA_RANGE[1]:g}], "
+                                 f"got {sigma!r}", file=source, field=fld, frame=frame)
             has_p, has_j = "points" in item, "joints" in item
             if has_p == has_j:
                 raise InputError("needs exactly one of 'points' or 'joints'", file=source, field=fld, frame=frame)
@@ -382,6 +391,9 @@ class Keyframes:
                     raise InputError(f"expected a number or a list, got shape {arr.shape}", file=source, field=f2, frame=frame)
                 if not np.all(np.isfinite(arr)):
                     raise InputError("NaN or infinite value", file=source, field=f2, frame=frame)
+                if np.any(np.abs(arr) > KEYFRAME_MAX_VALUE):
+                    raise InputError(f"a value beyond +-{KEYFRAME_MAX_VALUE:g} (metres or radians)", file=source,
+                                     field=f2, frame=frame)
                 parsed[str(name)] = arr
             out.append(Keyframe(frame, float(sigma), **{key: parsed}))
         return cls(out, source)
