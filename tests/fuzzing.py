@@ -30,7 +30,6 @@ import numpy as np
 from pinrecon.errors import PinreconError
 
 
-
 def detectors_folder() -> Path:
     """The real detector outputs the seeds mutate (pinrecon.datasets, project-test-data)."""
     from pinrecon import datasets
@@ -41,8 +40,12 @@ def detectors_folder() -> Path:
 JUNK = [
     None, True, False, 0, -1, 1, 0.5, 7, -1e308, 1e308, 10**400, -(10**400), 2**63, math.nan, math.inf,
     -math.inf, 1e-320, "", "x", "12", "0.jpg", [], {}, [None], [[]], [1, 2], [1.5, 2.5, 0.9], {"a": 1},
-    [[1, 2]] * 3, list(range(75)),
+    [[1, 2]] * 3, list(range(75)), "__DEEP__", "__BIGINT__",
 ]
+#: what the two markers above become in the written JSON: nesting past any parser's
+#: recursion limit, and an integer literal past Python's int-string limit
+DEEP = "[" * 3000 + "]" * 3000
+BIGINT = "9" * 5000
 OPTIONS_PERSON = [None] * 8 + [0, 1, 2, "largest", (0.0, 0.0, 5000.0, 5000.0), (10.0, 10.0, 20.0, 20.0), "1"]
 OPTIONS_LAYOUT = [None] * 12 + ["body25", "body25b", "coco17", "halpe26", "box", "h36m17"]
 
@@ -74,10 +77,11 @@ def _json(path):
     return json.loads(Path(path).read_text())
 
 
-def seeds() -> dict[str, tuple[str, object]]:
+def seeds(detectors: Path | None = None) -> dict[str, tuple[str, object]]:
     """name -> (kind, content): ``json`` a document, ``folder`` {file name: document},
-    ``npz`` a dict of arrays."""
-    DET = detectors_folder()
+    ``npz`` a dict of arrays. ``detectors``: the folder of detector outputs (default
+    :func:`detectors_folder`)."""
+    DET = detectors or detectors_folder()
     multi = sorted((DET / "pose2sim_body25b_multi").glob("*.json"))[:3]
     halpe = sorted((DET / "pose2sim_halpe26").glob("*.json"))[:2]
     coco = _json(DET / "mmpose_coco17_dataset.json")
@@ -189,11 +193,35 @@ def mutate_bytes(data: bytes, ch) -> bytes:
         for _ in range(ch.int(1, 4)):
             b[ch.int(0, len(b) - 1)] = ch.int(0, 255)
         return bytes(b)
-    return data[:i] + ch.pick([b"{", b"]", b",", b"\xff\xfe", b"NaN", b"1e999", b'"x"', b"\x00"]) + data[i:]
+    return data[:i] + ch.pick([b"{", b"]", b",", b"\xff\xfe", b"NaN", b"1e999", b'"x"', b"\x00", b"[" * 3000,
+                               BIGINT.encode(), b"-Infinity"]) + data[i:]
 
 
 def _dump(doc) -> bytes:
-    return json.dumps(doc).encode()
+    return json.dumps(doc).replace('"__DEEP__"', DEEP).replace('"__BIGINT__"', BIGINT).encode()
+
+
+def odd_path(path: Path, ch) -> Path:
+    """Now and then (1 case in 16) the path itself is the fault: a symbolic link to itself, a
+    folder, an empty file, a link to nowhere; else ``path``."""
+    kind = ch.pick(["keep"] * 15 + ["odd"])
+    if kind == "keep":
+        return path
+    odd = path.with_name("odd" + path.suffix)
+    if odd.is_symlink() or odd.is_file():
+        odd.unlink()
+    elif odd.is_dir():
+        odd.rmdir()
+    what = ch.pick(["loop", "folder", "empty", "dangling"])
+    if what == "loop":
+        odd.symlink_to(odd.name)
+    elif what == "folder":
+        odd.mkdir()
+    elif what == "empty":
+        odd.write_bytes(b"")
+    else:
+        odd.symlink_to("nowhere" + path.suffix)
+    return odd
 
 
 def _npz_array(ch):
@@ -282,7 +310,7 @@ def check_tracks(tracks) -> str | None:
     return None
 
 
-def _quiet():
+def quiet():
     stack = contextlib.ExitStack()
     stack.enter_context(warnings.catch_warnings())
     warnings.simplefilter("ignore")
@@ -294,9 +322,9 @@ def run_loader_case(name: str, content, ch, root: Path) -> tuple[str, str]:
     """(outcome, detail): outcome is ``result``, ``error``, ``crash`` or ``nan``."""
     from pinrecon.tracks import load_keyframes, load_tracks
 
-    path = write_case(name, content, ch, root)
+    path = odd_path(write_case(name, content, ch, root), ch)
     person, layout = ch.pick(OPTIONS_PERSON), ch.pick(OPTIONS_LAYOUT)
-    with _quiet():
+    with quiet():
         try:
             if content[0] == "keyframes":
                 k = load_keyframes(path)
@@ -349,7 +377,7 @@ def run_cli_case(name: str, content, ch, root: Path, fixed: Path) -> tuple[str, 
     else:
         argv = ["links", str(path), "--quiet", "--names", "nose", "left_shoulder", "left_hip", *opts]
     err = io.StringIO()
-    with _quiet(), contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(err):
+    with quiet(), contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(err):
         try:
             rc = main(argv)
         except Exception:  # noqa: BLE001

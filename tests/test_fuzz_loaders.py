@@ -20,7 +20,6 @@ from fuzzing import CLI_SEEDS, LOADER_SEEDS, run_cli_case, run_loader_case, scra
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-SEEDS = seeds()
 LOADER_CASES = 420
 CLI_CASES = 100
 SETTINGS = {"deadline": None, "derandomize": True, "database": None, "suppress_health_check": list(HealthCheck)}
@@ -39,6 +38,13 @@ class DrawChooser:
         return seq[self.data.draw(st.integers(0, len(seq) - 1))]
 
 
+@pytest.fixture(scope="module")
+def SEEDS():
+    from conftest import data_folder
+
+    return seeds(data_folder("project-test-data/detectors"))
+
+
 @pytest.fixture
 def scratch(tmp_path):
     path = scratch_dir(tmp_path)
@@ -48,7 +54,7 @@ def scratch(tmp_path):
 
 
 @pytest.mark.parametrize("name", LOADER_SEEDS)
-def test_loaders_never_crash(name, scratch):
+def test_loaders_never_crash(name, scratch, SEEDS):
     outcomes = []
 
     @settings(max_examples=LOADER_CASES, **SETTINGS)
@@ -63,7 +69,7 @@ def test_loaders_never_crash(name, scratch):
 
 
 @pytest.mark.parametrize("name", CLI_SEEDS)
-def test_cli_never_crashes_nor_half_writes(name, scratch):
+def test_cli_never_crashes_nor_half_writes(name, scratch, SEEDS):
     outcomes = []
 
     @settings(max_examples=CLI_CASES, **SETTINGS)

@@ -120,6 +120,10 @@ def distortion_jacobian(xy: np.ndarray, dist: np.ndarray) -> np.ndarray:
     return J
 
 
+#: the largest camera number accepted (a focal length, a principal point, a translation in metres)
+MAX_CAMERA_VALUE = 1e7
+
+
 def _as_matrix(value, shape, field, file):
     try:
         arr = np.asarray(value, dtype=float)
@@ -129,6 +133,8 @@ def _as_matrix(value, shape, field, file):
         raise InputError(f"expected shape {shape}, got {arr.shape}", file=file, field=field)
     if not np.all(np.isfinite(arr)):
         raise InputError("contains NaN or infinite values", file=file, field=field)
+    if np.any(np.abs(arr) > MAX_CAMERA_VALUE):
+        raise InputError(f"a value beyond +-{MAX_CAMERA_VALUE:g} (pixels or metres)", file=file, field=field)
     return arr
 
 

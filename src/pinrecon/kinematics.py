@@ -24,6 +24,8 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
+from .errors import InputError
+
 __all__ = [
     "BATCH_MIN_FRAMES",
     "batch_joint_kinematics",
@@ -60,7 +62,11 @@ def joint_kinds(model) -> list | None:
             kinds.append(("pri", _AXES[name[-1]]))
         elif name in ("JointModelRevoluteUnaligned", "JointModelPrismaticUnaligned"):
             axis = np.array(model.joints[j].extract().axis, float)
-            kinds.append(("rev" if "Revolute" in name else "pri", axis / np.linalg.norm(axis)))
+            norm = np.linalg.norm(axis)
+            if not (np.isfinite(norm) and norm > 1e-12):
+                raise InputError(f"joint {model.names[j]!r}: its axis {axis.tolist()} has no direction",
+                                 field="axis")
+            kinds.append(("rev" if "Revolute" in name else "pri", axis / norm))
         else:
             return None
     return kinds

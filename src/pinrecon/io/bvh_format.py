@@ -21,6 +21,11 @@ __all__ = ["BvhJoint", "BvhClip", "read_bvh", "static_joints", "write_bvh_text"]
 
 _CHANNELS = ("Xposition", "Yposition", "Zposition", "Xrotation", "Yrotation", "Zrotation")
 
+#: the largest BVH number accepted (offsets, positions, angles in degrees)
+MAX_VALUE = 1e9
+#: the frame times accepted, seconds
+FRAME_TIME_RANGE = (1e-6, 1e3)
+
 
 @dataclass
 class BvhJoint:
@@ -120,6 +125,8 @@ def read_bvh(path: str | os.PathLike) -> BvhClip:
                 vals.append(float(tok))
             except ValueError:
                 raise err(f"{what}: expected {n} numbers, found {tok!r}", ln) from None
+            if not abs(vals[-1]) <= MAX_VALUE:
+                raise err(f"{what}: {tok!r} is not a length (finite, at most {MAX_VALUE:g})", ln)
         if len(vals) != n:
             raise err(f"{what}: expected {n} numbers", lineno)
         return vals
@@ -147,6 +154,8 @@ def read_bvh(path: str | os.PathLike) -> BvhClip:
         elif tok == "{":
             if pending is None:
                 raise err("unexpected '{'", ln)
+            if pending == "end" and (not stack or stack[-1] is None):
+                raise err("End Site outside a joint block", ln)
             stack.append(len(joints) - 1 if pending == "joint" else None)
             if pending == "end":
                 joints[stack[-2]].end_sites.append(None)
@@ -216,6 +225,11 @@ def read_bvh(path: str | os.PathLike) -> BvhClip:
         raise InputError("MOTION needs 'Frames:' and 'Frame Time:'", file=path, field="MOTION")
     if not frame_time > 0:
         raise InputError(f"must be positive, got {frame_time}", file=path, field="Frame Time")
+    if not FRAME_TIME_RANGE[0] <= frame_time <= FRAME_TIME_RANGE[1]:
+        raise InputError(f"must be in [{FRAME_TIME_RANGE[0]:g}, {FRAME_TIME_RANGE[1]:g}] seconds, got {frame_time}",
+                         file=path, field="Frame Time")
+    if n_frames < 0:
+        raise InputError(f"must be a number of frames, got {n_frames}", file=path, field="Frames")
     n_ch = sum(len(j.channels) for j in joints)
     rows = lines[k:]
     if len(rows) < n_frames:
@@ -239,6 +253,9 @@ def read_bvh(path: str | os.PathLike) -> BvhClip:
     if not np.all(np.isfinite(values)):
         f = int(np.where(~np.all(np.isfinite(values), axis=1))[0][0])
         raise InputError("NaN or infinite channel value", file=path, field="MOTION", frame=f)
+    if np.any(np.abs(values) > MAX_VALUE):
+        f = int(np.where(np.any(np.abs(values) > MAX_VALUE, axis=1))[0][0])
+        raise InputError(f"a channel value beyond +-{MAX_VALUE:g}", file=path, field="MOTION", frame=f)
     return BvhClip(joints, frame_time, values, str(path))
 
 

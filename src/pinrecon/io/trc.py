@@ -61,6 +61,10 @@ _UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001}
 _AXES = {"x": 0, "y": 1, "z": 2}
 
 
+#: the farthest marker accepted, metres (a larger or infinite coordinate is a broken file)
+MAX_MARKER_M = 1e6
+
+
 def z_up_rotation(up: str) -> np.ndarray:
     """The rotation (3, 3) taking a world whose ``up`` axis is up to pinrecon's Z-up world: a
     cyclic permutation of the axes (determinant +1)."""
@@ -119,6 +123,10 @@ def load_trc(path: str | os.PathLike, *, up: str = "y", names: str = "file") -> 
             raise InputError(f"not a number: {fields[k].strip()!r} (line {line}, marker {marker_names[k // 3]!r})",
                              file=path, field="coordinates", frame=t) from None
         X[t].flat[: len(vals)] = vals
+        big = [k for k, v in enumerate(vals) if not abs(v) <= MAX_MARKER_M / _UNITS[unit] and not math.isnan(v)]
+        if big:
+            raise InputError(f"{fields[big[0]].strip()!r} is not a position (line {line}, marker "
+                             f"{marker_names[big[0] // 3]!r})", file=path, field="coordinates", frame=t)
     X = (X * _UNITS[unit]) @ R.T
     if names == "pinrecon":
         marker_names = [POSE2SIM_NAMES.get(n, n) for n in marker_names]

@@ -347,7 +347,7 @@ def _matrix(node, file, field):
     try:
         rows, cols = int(node["rows"]), int(node["cols"])
         data = np.asarray(node["data"], dtype=float).ravel()
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise InputError(
             "a matrix needs integer rows, cols and numeric data", file=file, field=field
         ) from None

@@ -259,6 +259,8 @@ def _read_toml(text, path, metres_per_unit):
         doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise InputError(f"not valid TOML ({exc})", file=path) from None
+    except (ValueError, RecursionError) as exc:  # an integer past Python's int-string limit; nesting past recursion
+        raise InputError(f"not valid TOML ({type(exc).__name__}: {str(exc)[:80]})", file=path) from None
     cameras = [
         _toml_camera(key, table, path, metres_per_unit)
         for key, table in doc.items()
