@@ -366,7 +366,12 @@ def run_cli_case(name: str, content, ch, root: Path, fixed: Path) -> tuple[str, 
     path = write_case(name, content, ch, root)
     out = fixed / "result.npz"
     out.write_bytes(PREVIOUS)
+    blocker = fixed / "blocker"
+    if not blocker.exists():
+        blocker.write_text("a file where a folder is expected")
     command = ch.pick(["reconstruct", "reconstruct", "links"])
+    # now and then a second output that cannot be written: the run must fail before the solve
+    unwritable = ch.pick([None] * 5 + [blocker / "camera.json", blocker / "sub" / "camera.json", fixed])
     opts = ["--fps", "25"]
     person = ch.pick(OPTIONS_PERSON[:11])
     if person is not None:
@@ -374,6 +379,8 @@ def run_cli_case(name: str, content, ch, root: Path, fixed: Path) -> tuple[str, 
     if command == "reconstruct":
         argv = ["reconstruct", "--figure", str(urdf), "--keypoints", str(kp), "--tracks", str(path), "--camera",
                 str(cam), "--out", str(out), "--quiet", "--max-iterations", "2", *opts]
+        if unwritable is not None:
+            argv += ["--save-camera", str(unwritable)]
     else:
         argv = ["links", str(path), "--quiet", "--names", "nose", "left_shoulder", "left_hip", *opts]
     err = io.StringIO()
@@ -387,6 +394,11 @@ def run_cli_case(name: str, content, ch, root: Path, fixed: Path) -> tuple[str, 
     if command == "reconstruct":
         if rc != 0 and out.read_bytes() != PREVIOUS:
             return "half-written", f"rc {rc} and the output changed"
+        left = sorted(p.name for p in fixed.iterdir() if p.name.startswith("."))
+        if left:
+            return "half-written", f"temporaries left: {left}"
+        if unwritable is not None and (rc == 0 or "cannot write the output" not in err.getvalue()):
+            return "half-written", f"rc {rc} with an unwritable --save-camera: {err.getvalue()[:200]}"
         if rc == 0:
             from pinrecon.result import load_result
 

@@ -140,8 +140,9 @@ def _as_matrix(value, shape, field, file):
 
 def _check_rotation(R, file=None, field="R"):
     R = _as_matrix(R, (3, 3), field, file)
-    err = np.abs(R @ R.T - np.eye(3)).max()
-    det = np.linalg.det(R)
+    with np.errstate(all="ignore"):  # subnormal entries: the test below refuses them, quietly
+        err = np.abs(R @ R.T - np.eye(3)).max()
+        det = np.linalg.det(R)
     if err > _ROT_TOL or det < 0:
         raise InputError(
             f"is not a rotation matrix (|R R^T - I|max = {err:.2e}, det = {det:.6f}); "
