@@ -2,14 +2,23 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pytest
+from hypothesis import settings
 from threadpoolctl import threadpool_limits
 
 # One BLAS thread for the whole session: the tests are many small matrix operations, and
 # OpenBLAS threads that spin-wait on a busy 2-core machine made solves 30x slower here.
 _BLAS_LIMIT = threadpool_limits(limits=1, user_api="blas")
+
+# Hypothesis profiles: "ci" (the default: few, fixed examples, so the property tests take
+# well under two minutes and every run tries the same cases) and "long" (a deeper search).
+# Choose with PINRECON_HYPOTHESIS_PROFILE=long.
+settings.register_profile("ci", max_examples=25, deadline=None, derandomize=True, database=None)
+settings.register_profile("long", max_examples=1000, deadline=None)
+settings.load_profile(os.environ.get("PINRECON_HYPOTHESIS_PROFILE", "ci"))
 
 TESTS_DIR = Path(__file__).resolve().parent
 REPO = TESTS_DIR.parent
