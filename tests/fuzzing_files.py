@@ -29,7 +29,17 @@ import traceback
 from pathlib import Path
 
 import numpy as np
-from fuzzing import BIGINT, DEEP, PREVIOUS, STICK_KEYPOINTS, STICK_URDF, mutate_bytes, mutate_doc, odd_path, quiet
+from fuzzing import (
+    BIGINT,
+    DEEP,
+    PREVIOUS,
+    STICK_KEYPOINTS,
+    STICK_URDF,
+    mutate_bytes,
+    mutate_doc,
+    odd_path,
+    quiet,
+)
 
 from pinrecon.errors import PinreconError
 

@@ -122,7 +122,7 @@ def test_export_second_output_unwritable(tmp_path, capsys):
 
     fig = Figure.from_urdf_string(STICK_URDF, parse_keypoint_entries(KEYPOINTS["keypoints"]))
     res = tmp_path / "r.npz"
-    Result.from_motion(fig, np.zeros((4, fig.nq)), 25.0).save(res)
+    Result.from_motion(fig, np.tile(fig.neutral(), (4, 1)), 25.0).save(res)
     (tmp_path / "blocker").write_text("x")
     rc, err, seconds = _run(["export", str(res), "--bvh", str(tmp_path / "m.bvh"), "--csv",
                              str(tmp_path / "blocker" / "m.csv")], capsys)

@@ -350,6 +350,7 @@ class Result:
         """Write the result NPZ (``docs/formats.md``), atomically. It embeds the figure's
         URDF and keypoint map so the file alone can be plotted and exported."""
         fig = self.figure
+        check_motion(fig, self.q, self.fps, file=path)
         parents = np.array([-1 if p is None else p for p in fig.parents_of_keypoints])
         meta = {k: v for k, v in fig.meta.items() if not k.startswith("_")}
         save_result_npz(

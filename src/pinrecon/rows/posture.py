@@ -18,13 +18,13 @@ plays the role of DiFranco et al.'s stabilising term ``kI``, in joint space.
 from __future__ import annotations
 
 import functools
-import json
 from pathlib import Path
 
 import numpy as np
 
 from .._resources import model_path
 from ..errors import InputError
+from ..io.jsonfile import read_json
 from .base import RowBlock, RowKind, State
 
 __all__ = ["PosePrior", "Posture", "pose_prior", "pose_prior_covariance", "pose_prior_distances", "pose_prior_names",
@@ -241,8 +241,8 @@ def _pose_prior_file(name: str) -> dict:
     if not path.is_file():
         raise InputError(f"no pose prior {name!r}; bundled: {', '.join(pose_prior_names())}, or a JSON file made by "
                          "tools/fit_pose_prior.py", field="weights.pose_prior_model")
+    data = read_json(path)
     try:
-        data = json.loads(path.read_text())
         corr = data["correlated"]
         mix = corr.get("mixture")
         if mix is not None:
@@ -253,7 +253,7 @@ def _pose_prior_file(name: str) -> dict:
                 "distances": {k: float(v) for k, v in corr.get("distance_quantiles", {}).items()},
                 "rest_directions": {k: np.asarray(v, float) for k, v in data.get("rest_directions", {}).items()},
                 "figure": str(data.get("figure", ""))}
-    except (ValueError, KeyError, TypeError, IndexError) as exc:
+    except (ValueError, KeyError, TypeError, IndexError, AttributeError) as exc:
         raise InputError(f"not a pose prior made by tools/fit_pose_prior.py ({exc})", file=path,
                          field="weights.pose_prior_model") from None
 
