@@ -153,3 +153,10 @@ def test_check_names_the_path(tmp_path):
         Outputs([tmp_path / "d"]).check()
     with pytest.raises(InputError, match="two outputs"):
         Outputs(fields={"--out": tmp_path / "x.npz", "--bvh": tmp_path / "x.npz"}).check()
+
+
+def test_plot_folder_that_is_a_file(tmp_path, capsys):
+    (tmp_path / "pictures").write_text("x")
+    rc, err, seconds = _run(["plot", str(tmp_path / "missing.npz"), "--out", str(tmp_path / "pictures")], capsys)
+    assert rc == 2 and seconds < 2.0 and err.count("\n") == 1 and "is a file, not a folder" in err
+    assert (tmp_path / "pictures").read_text() == "x"

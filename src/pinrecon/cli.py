@@ -183,7 +183,11 @@ def _save_cameras(res, path) -> list[str]:
 def cmd_demo(args) -> int:
     from .datasets import clip, source
     from .demo import run_demo
+    from .io.atomic import Outputs
 
+    outs = Outputs()
+    outs.add_folder(args.out, field="--out")
+    outs.check()  # before the solve; the demo reads back what it writes, so its files are not staged
     if not args.quiet:
         print(f"pinrecon demo: data from {source()}", file=sys.stderr)
     clip("walk")  # fetched (with a progress bar) before the work, or one clear error
