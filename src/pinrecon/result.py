@@ -22,7 +22,7 @@ from .errors import InputError
 from .figure import Figure, parse_keypoint_entries
 from .io.fields import string_field
 from .io.motion import check_motion
-from .io.results import load_result_npz, save_result_npz, text_json
+from .io.results import check_calibration, load_result_npz, save_result_npz, text_json
 from .rows.posture import unused_priors
 from .solver import SolveResult
 
@@ -461,7 +461,7 @@ def load_result(path) -> Result:
         camera_names=cam_names,
         reprojection_error_px_per_camera=d.get("reprojection_error_px_per_camera"),
         extras={k: d[k] for k in d if k in FOOT_EXTRAS or k.startswith(FAULT_EXTRAS_PREFIXES)},
-        calibration=text_json(d, "calibration", file=path, default={}, expect=dict),
+        calibration=check_calibration(text_json(d, "calibration", file=path, default={}, expect=dict), path),
         stages=_stages(d, path),
     )
 

@@ -99,7 +99,83 @@ def load_result_npz(path: str | os.PathLike) -> dict:
         if np.asarray(a).dtype.kind not in "biufU":
             raise InputError(f"has dtype {np.asarray(a).dtype}: a result holds numbers, booleans and text",
                              file=path, field=key)
+    check_extras(data, path)
     return data
+
+
+#: the extras the pipeline writes: key -> (shape, kind, finite); ``None`` in a shape is free
+EXTRAS = {
+    "floor": ((4,), "number", True), "foot_names": ((None,), "string", False),
+    "foot_contact": ((None, None), "bool-like", False), "foot_contact_height_m": (None, "number", True),
+    "foot_clearance_m": (None, "number", True),
+    "hypothesis_chains": ((None,), "string", False), "hypothesis_spans": ((None, 5), "number", True),
+    "hypothesis_threshold": ((), "number", True), "hypothesis_turns": ((None, 4), "number", True),
+    "solution_turns": ((None, 4), "number", True), "solution_mirrors": ((None, 5), "number", False),
+    "mirror_chains": ((None,), "string", False), "mirror_uncertain": ((None, 4), "number", True),
+    "mirror_uncertain_nats": ((), "number", False),
+    "repaired_frames": ((None,), "integer", False), "outlier_frames": ((None,), "integer", False),
+    "outlier_points": ((None,), "string", False), "outlier_error_px": ((None,), "number", True),
+    "outlier_threshold_px": ((), "number", False),
+    "prior_distance": ((None,), "number", False), "prior_distance_limit": ((), "number", True),
+    "prior_unfamiliar_spans": ((None, 2), "integer", False), "prior_distance_model": ((), "string", False),
+    "prior_model": ((), "string", False), "prior_default_unfamiliar": ((), "number", True),
+    "stability_drop": ((), "number", True), "stability_seeds": ((None,), "integer", False),
+    "stability_spread_mm": ((None, None), "number", True), "stability_keypoint_spread_mm": ((None, None), "number", True),
+    "stability_names": ((None,), "string", False), "stability_threshold_mm": ((), "number", True),
+}
+#: extras that come together: one present, all of them must be
+EXTRAS_GROUPS = [
+    ("floor", "foot_names", "foot_contact", "foot_contact_height_m", "foot_clearance_m"),
+    ("hypothesis_spans", "hypothesis_chains"),
+    ("mirror_uncertain", "mirror_chains", "mirror_uncertain_nats"),
+    ("outlier_frames", "outlier_points", "outlier_error_px"),
+    ("prior_distance", "prior_distance_limit", "prior_unfamiliar_spans"),
+    ("prior_default_unfamiliar", "prior_model"),
+    ("stability_spread_mm", "stability_keypoint_spread_mm", "stability_names", "stability_threshold_mm",
+     "stability_drop"),
+]
+
+
+def check_extras(data: dict, path=None) -> None:
+    """The pipeline's extras in a result (:data:`EXTRAS`): shapes, kinds, finiteness, the
+    groups that come together and the indices that point into each other."""
+    for key, (shape, kind, finite) in EXTRAS.items():
+        if key in data:
+            array_field(data, key, file=path, shape=shape, kind=kind, finite=finite)
+    for group in EXTRAS_GROUPS:
+        present = [k for k in group if k in data]
+        if present and len(present) < len(group):
+            missing = [k for k in group if k not in data]
+            raise InputError(f"comes with {missing}, which the file lacks", file=path, field=present[0])
+
+    def n(key):
+        return len(data[key])
+
+    if "hypothesis_spans" in data:
+        _indices(data, "hypothesis_spans", 0, n("hypothesis_chains"), path)
+    if "foot_names" in data and data["foot_contact"].shape[1:] != (n("foot_names"),):
+        raise InputError(f"must have one column per foot point ({n('foot_names')})", file=path, field="foot_contact")
+    if "outlier_frames" in data and not n("outlier_frames") == n("outlier_points") == n("outlier_error_px"):
+        raise InputError("outlier_frames, outlier_points and outlier_error_px differ in length", file=path,
+                         field="outlier_frames")
+    if "prior_distance" in data:
+        spans = data["prior_unfamiliar_spans"]
+        if len(spans) and not (np.all(spans[:, 0] >= 0) and np.all(spans[:, 0] < spans[:, 1])
+                               and np.all(spans[:, 1] <= n("prior_distance"))):
+            raise InputError(f"spans must lie in the {n('prior_distance')} frames, first < last",
+                             file=path, field="prior_unfamiliar_spans")
+    if "stability_spread_mm" in data:
+        spread, per_point = np.atleast_2d(data["stability_spread_mm"]), data["stability_keypoint_spread_mm"]
+        if per_point.shape != (spread.shape[1], n("stability_names")):
+            raise InputError(f"must be (frames {spread.shape[1]}, points {n('stability_names')}), got "
+                             f"{per_point.shape}", file=path, field="stability_keypoint_spread_mm")
+
+
+def _indices(data, key, column, count, path) -> None:
+    """Column ``column`` of ``data[key]`` holds indices into a list of ``count``."""
+    col = np.asarray(data[key], float)[:, column]
+    if len(col) and not (np.all(col == np.round(col)) and col.min() >= 0 and col.max() < count):
+        raise InputError(f"column {column} must index the {count} labels", file=path, field=key)
 
 
 def text_json(data: dict, key: str, *, file=None, default=None, expect: type | None = None):
@@ -113,3 +189,38 @@ def text_json(data: dict, key: str, *, file=None, default=None, expect: type | N
         raise InputError(f"must hold a JSON {'object' if expect is dict else 'list'}, got {type(out).__name__}",
                          file=file, field=key)
     return out
+
+
+def check_calibration(c: dict, path=None) -> dict:
+    """The ``calibration`` JSON of a result: the types the summary reads (``mode`` text;
+    ``lengths_m``, ``generic_lengths_m``, ``lengths_from_tracks`` {group: number};
+    ``cameras`` {name: {start, fitted: numbers}}; ``identifiability`` and ``camera_auto``
+    objects)."""
+    def fail(what, field):
+        raise InputError(what, file=path, field=f"calibration.{field}")
+
+    def numbers(d, field):
+        if not isinstance(d, dict) or not all(_number(v) for v in d.values()):
+            fail("must be an object {name: number}", field)
+
+    for key in ("lengths_m", "generic_lengths_m", "lengths_from_tracks"):
+        if c.get(key) is not None:
+            numbers(c[key], key)
+    cams = c.get("cameras") or {}
+    if not isinstance(cams, dict) or not all(isinstance(v, dict) and _number(v.get("start")) and
+                                             _number(v.get("fitted")) for v in cams.values()):
+        fail("must be an object {camera: {start, fitted}} of numbers", "cameras")
+    for key in ("identifiability", "camera_auto"):
+        if c.get(key) is not None and not isinstance(c[key], dict):
+            fail("must be an object", key)
+    ident = c.get("identifiability") or {}
+    if not isinstance(ident.get("undetermined", []), list):
+        fail("must be a list of group names", "identifiability.undetermined")
+    focal = (c.get("camera_auto") or {}).get("focal")
+    if focal is not None and not isinstance(focal, dict):
+        fail("must be an object", "camera_auto.focal")
+    return c
+
+
+def _number(x) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool) and np.isfinite(x)
