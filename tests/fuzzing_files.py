@@ -163,7 +163,8 @@ def _float_q(arrays) -> bool:
 
 def mutate_result(arrays: dict, ch) -> dict:
     """One mutation of a result NPZ's arrays (in place; returns them)."""
-    op = ch.pick(["junk", "junk", "delete", "text", "text", "zero-quaternion", "fps", "q-value", "shape"])
+    op = ch.pick(["junk", "junk", "delete", "text", "text", "zero-quaternion", "fps", "q-value", "shape", "extra",
+                  "extra"])
     keys = sorted(arrays)
     key = ch.pick(keys) if keys else "q"
     if op == "junk":
@@ -186,6 +187,15 @@ def mutate_result(arrays: dict, ch) -> dict:
         q = np.array(arrays["q"], float)
         q[ch.int(0, q.shape[0] - 1), ch.int(0, q.shape[1] - 1)] = ch.pick([math.inf, -math.inf, math.nan, 1e300])
         arrays["q"] = q
+    elif op == "extra":  # a pipeline extra (faults, mirrors, stability, feet ...), usually with its group
+        from fuzzing import _npz_array
+
+        from pinrecon.io.results import EXTRAS, EXTRAS_GROUPS
+
+        group = ch.pick(EXTRAS_GROUPS)
+        for k in group if ch.int(0, 2) else [ch.pick(sorted(EXTRAS))]:
+            arrays[k] = ch.pick([_npz_array(ch), np.zeros((0, 5)), np.ones((2, 5)), np.array(["a", "b"]),
+                                 np.array([[0, 3], [2, 1]]), np.float64(2.0), np.ones((5, 2), bool), np.array([7])])
     elif op == "shape" and key in arrays and np.ndim(arrays[key]) >= 1 and len(arrays[key]) > 1:
         arrays[key] = np.asarray(arrays[key])[:-1]
     return arrays
@@ -340,6 +350,7 @@ def run_file_case(name: str, content, ch, root: Path) -> tuple[str, str]:
                 res = load_result(path)
                 if not (_finite(res.q, res.keypoints3d, res.times) and np.isfinite(res.fps) and res.fps > 0):
                     return "nan", "result with NaN or bad fps"
+                res.summary()  # what the summary reads is checked on load too
                 if res.figure is None:
                     return "result", ""
                 return export_case(path, root / "out")

@@ -145,7 +145,9 @@ class Result:
     def summary(self) -> str:
         s = self.solve
         err = np.nanmean(self.reprojection_error_px) if np.any(np.isfinite(self.reprojection_error_px)) else float("nan")
-        lines = [f"{len(self.times)} frames at {self.fps:g} fps, figure {self.figure.name!r} (nv={self.figure.nv})"]
+        fig = self.figure
+        what = f"figure {fig.name!r} (nv={fig.nv})" if fig is not None else "no embedded figure"
+        lines = [f"{len(self.times)} frames at {self.fps:g} fps, {what}"]
         if np.isfinite(err) or self.cameras:  # a fit to 3D markers has no image to reproject into
             lines.append(f"reprojection error {err:.3f} px (mean over observed points)")
         per = self.reprojection_error_px_per_camera
@@ -296,7 +298,7 @@ class Result:
         """Skating, penetration and floating of the foot points against the result's own
         floor and contacts (:func:`pinrecon.contact.foot_metrics`), when it has them."""
         feet = FootContact.from_extras(self.extras)
-        if feet is None:
+        if feet is None or self.figure is None:
             return None
         P = self.keypoints3d[:, self.figure.keypoint_index(feet.names)]
         return foot_metrics(P, feet.floor, feet.contact, self.fps, clearance_m=feet.clearance_m,
@@ -447,6 +449,11 @@ def load_result(path) -> Result:
         check_motion(fig, d["q"], fps, file=path)
         if list(map(str, d["keypoint_names"])) != list(fig.keypoint_names):
             raise InputError("do not match the embedded figure's keypoints", file=path, field="keypoint_names")
+        if "foot_names" in d:
+            try:
+                fig.keypoint_index([str(n) for n in d["foot_names"]])
+            except InputError as exc:
+                raise exc.located(file=path, field="foot_names") from None
     return Result(
         figure=fig,
         q=d["q"],
