@@ -6,9 +6,9 @@ frame when the caller gives them), never an ``OSError``, ``UnicodeDecodeError``,
 ``RecursionError`` or ``zipfile`` error:
 
 * :func:`read_json` / :func:`parse_json` (a file, or JSON embedded in a string field):
-  nesting deeper than :data:`MAX_DEPTH`, integer literals longer than
-  :data:`MAX_INT_DIGITS` digits, and numbers that are infinite (``Infinity``, ``1e999``)
-  are refused; ``NaN`` is kept (readers treat it as missing).
+  nesting deeper than :data:`MAX_DEPTH` and integer literals longer than
+  :data:`MAX_INT_DIGITS` digits are refused; ``NaN``, ``Infinity`` and ``1e999`` parse to
+  floats, which each reader refuses (or takes as missing) naming the field.
 * :func:`read_text`: missing files, folders, symlink loops, unreadable files, text that is
   not UTF-8.
 * :func:`read_npz`: anything :func:`numpy.load` cannot read (a truncated zip, pickled
@@ -21,7 +21,6 @@ What a reader does with the decoded values (types, shapes, ranges) it checks wit
 from __future__ import annotations
 
 import json
-import math
 import os
 import re
 from pathlib import Path
@@ -50,19 +49,6 @@ def _parse_int(s: str) -> int:
     return int(s)
 
 
-def _parse_float(s: str) -> float:
-    v = float(s)
-    if math.isinf(v):
-        raise _Refused(f"the number {s[:30]} is out of range")
-    return v
-
-
-def _parse_constant(s: str) -> float:
-    if s == "NaN":
-        return math.nan
-    raise _Refused(f"{s} is not a number pinrecon accepts")
-
-
 def _depth(text: str) -> int:
     """The deepest nesting of ``[`` and ``{`` outside strings (vectorised: no recursion)."""
     if text.count("[") + text.count("{") <= MAX_DEPTH:
@@ -82,7 +68,7 @@ def parse_json(text: str, *, file=None, field: str | None = None, frame: int | N
         raise InputError(f"not valid JSON here (nested {depth} levels deep, at most {MAX_DEPTH})", file=file,
                          field=field, frame=frame)
     try:
-        return json.loads(text, parse_int=_parse_int, parse_float=_parse_float, parse_constant=_parse_constant)
+        return json.loads(text, parse_int=_parse_int)
     except _Refused as exc:
         raise InputError(f"not valid JSON here ({exc})", file=file, field=field, frame=frame) from None
     except json.JSONDecodeError as exc:
