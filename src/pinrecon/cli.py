@@ -225,38 +225,49 @@ def _bundled_walk() -> str:
 
 
 def cmd_plot(args) -> int:
+    from .io.atomic import Outputs
     from .viz import plot_result
 
-    files = plot_result(
-        args.result,
-        args.out,
-        truth=args.truth,
-        tracks=args.tracks,
-        animation=not args.no_animation,
-        truth_length_scale=args.truth_length_scale,
-        truth_skip_frames=args.truth_skip_frames,
-        tracks_fps=args.fps,
-    )
+    outs = Outputs()
+    outs.add_folder(args.out, field="--out")
+    outs.check()
+    with outs.commit():
+        files = plot_result(
+            args.result,
+            args.out,
+            truth=args.truth,
+            tracks=args.tracks,
+            animation=not args.no_animation,
+            truth_length_scale=args.truth_length_scale,
+            truth_skip_frames=args.truth_skip_frames,
+            tracks_fps=args.fps,
+        )
     for f in files:
         print(f)
     return 0
 
 
 def cmd_export(args) -> int:
+    from .io.atomic import Outputs
     from .io.bvh_export import export_result
 
-    if getattr(args, "html", None):
-        from .workbench.html_export import export_html
-
-        print(export_html(args.result, args.html))
-        if not (args.bvh or args.csv or args.trc):
-            return 0
-    if not (args.bvh or args.csv or args.trc):
+    html = getattr(args, "html", None)
+    if not (args.bvh or args.csv or args.trc or html):
         print("pinrecon export: nothing to do: give --bvh, --csv and/or --trc", file=sys.stderr)
         return 2
-    for f in export_result(args.result, bvh=args.bvh, csv=args.csv, ground=not args.as_reconstructed, up=args.up,
-                           units=None if args.units == "own" else args.units, facing=args.facing, trc=args.trc,
-                           trc_names=args.trc_names):
+    outs = Outputs(fields={"--bvh": args.bvh, "--csv": args.csv, "--trc": args.trc, "--html": html})
+    outs.check()
+    written = []
+    with outs.commit():
+        if html:
+            from .workbench.html_export import export_html
+
+            written.append(export_html(args.result, html))
+        if args.bvh or args.csv or args.trc:
+            written += export_result(args.result, bvh=args.bvh, csv=args.csv, ground=not args.as_reconstructed,
+                                     up=args.up, units=None if args.units == "own" else args.units,
+                                     facing=args.facing, trc=args.trc, trc_names=args.trc_names)
+    for f in written:
         print(f)
     return 0
 
@@ -424,6 +435,10 @@ def main(argv=None) -> int:
             return args.func(args)
         except PinreconError as exc:
             print(f"pinrecon: error: {exc}", file=sys.stderr)
+            return 2
+        except OSError as exc:  # a file system refusal while writing (disk full ...): one line, no traceback
+            where = f"{exc.filename}: " if exc.filename else ""
+            print(f"pinrecon: error: {where}{exc.strerror or exc}", file=sys.stderr)
             return 2
 
 
