@@ -327,6 +327,7 @@ def main(argv=None):
     a = ap.parse_args(argv)
     import torch
 
+    commit = git_commit()  # the tree the run started from
     torch.manual_seed(a.seed)
     torch.set_num_threads(a.threads)
     rng = np.random.default_rng(a.seed)
@@ -369,7 +370,7 @@ def main(argv=None):
     reg = datasets.registry()
     meta = {
         "what": "pinrecon 2D-to-3D lifter (tools/train_lifter.py)",
-        "commit": git_commit(),
+        "commit": commit,
         "versions": {"python": platform.python_version(), "numpy": np.__version__, "torch": torch.__version__},
         "seed": a.seed, "held_out_subjects": sorted(hold),
         "data": [{"name": c["name"], "subject": c["subject"], "sha256": reg[c["name"]].sha256, "frames": len(c["P"])}
