@@ -10,8 +10,9 @@ receptive field of 81 frames at the model's 30 frames per second) whose weights 
 
 Its sizes are in metres for a figure whose limb segments (upper arm, forearm, thigh, shank)
 average 40 cm: the lifter is scale-free, and :class:`pinrecon.lifted.Lifted` is used as one.
-Each point's confidence is ``exp(-sigma / 0.1 m)`` of the lifter's own predicted spread
-(a Gaussian's standard deviation, per point and frame).
+Each point's confidence is ``1 / (1 + (sigma / 0.1 m)^2)`` of the lifter's own predicted
+spread ``sigma`` (a Gaussian's standard deviation, per point and frame): an inverse variance
+relative to 10 cm, bounded by 1 (rows weigh a point by its confidence).
 
 Call::
 
@@ -44,7 +45,7 @@ HALF_WINDOW = 40
 MODEL_FPS = 30.0
 #: the output's unit: a figure whose mean limb segment is this long comes out in metres
 LIMB_LENGTH_M = 0.40
-#: confidence = exp(-sigma / CONFIDENCE_SIGMA_M)
+#: confidence = 1 / (1 + (sigma / CONFIDENCE_SIGMA_M)^2)
 CONFIDENCE_SIGMA_M = 0.10
 #: per-frame input channels: 12 x (x, y, confidence), centre velocity (2), camera cues (4)
 N_FEATURES = 3 * len(BODY) + 2 + 4
@@ -213,6 +214,7 @@ def lift(tracks, camera=None, *, model: LifterModel | None = None) -> Lifted:
     stride = max(1, int(round(float(tracks.fps) / MODEL_FPS))) if getattr(tracks, "fps", None) else 1
     X = features(xy if xy is not None else uv, conf, stride=stride, known=xy is not None)
     P, log_sigma = model.predict(X, stride)
+    P = P - P[:, [BODY.index("left_hip"), BODY.index("right_hip")]].mean(1, keepdims=True)
     sigma_m = np.exp(log_sigma) * LIMB_LENGTH_M
-    return Lifted(P * LIMB_LENGTH_M, list(BODY), np.exp(-sigma_m / CONFIDENCE_SIGMA_M), "camera",
+    return Lifted(P * LIMB_LENGTH_M, list(BODY), 1.0 / (1.0 + (sigma_m / CONFIDENCE_SIGMA_M) ** 2), "camera",
                   f"pinrecon lifter ({Path(model.path).name if model.path else 'weights'})", 0)
