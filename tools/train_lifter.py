@@ -318,7 +318,7 @@ def main(argv=None):
     ap.add_argument("--hold-out", type=int, nargs="*", default=[2, 9],
                     help="subjects left out of training (default 2 and 9)")
     ap.add_argument("--out", default=str(ROOT / "models" / "lifter" / "lifter.npz"))
-    ap.add_argument("--steps", type=int, default=3000)
+    ap.add_argument("--steps", type=int, default=1600)
     ap.add_argument("--batch", type=int, default=128)
     ap.add_argument("--hidden", type=int, default=256)
     ap.add_argument("--dropout", type=float, default=0.15)
