@@ -202,7 +202,7 @@ def main(argv=None):
                   flush=True)
     if a.map:
         rows_ok = has_lifted_rows()
-        print(f"\nThe MAP (Figure.human(), true camera, no keyframes): today's default path"
+        print("\nThe MAP (Figure.human(), true camera, no keyframes): today's default path"
               + (", and with the fold's lifter as lifted-pose rows" if rows_ok else
                  " (no lifted-pose rows in this pinrecon: the lifter's rows are not run)") + "\n")
         print("| clip | angle | default PA-MPJPE (mm) | default flips (%) | default time (s) "

@@ -82,7 +82,12 @@ def test_strided_inference_is_the_model_on_every_k_th_frame(model):
 
 def _held_out_run():
     from pinrecon.io.bvh import load_bvh
-    from pinrecon.synthetic import COCO_BODY_FROM_CMU, coco_body_tracks, detector_faults, perspective_side_camera
+    from pinrecon.synthetic import (
+        COCO_BODY_FROM_CMU,
+        coco_body_tracks,
+        detector_faults,
+        perspective_side_camera,
+    )
 
     m = load_bvh(data_file("mocap/cmu-mb_09_01.bvh"), 0.056444, skip_frames=1, lock="static")
     cam = perspective_side_camera(m.q, 45.0)

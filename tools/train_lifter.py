@@ -144,7 +144,7 @@ def sample(clips, weights, B: int, rng: np.random.Generator, faults: bool = True
     P = np.empty((B, SEG, K, 3))
     for b in range(B):
         c = clips[rng.choice(len(clips), p=weights)]
-        st = max(1, int(round(c["fps"] / rng.uniform(20.0, 50.0))))
+        st = max(1, round(c["fps"] / rng.uniform(20.0, 50.0)))
         T = len(c["P"])
         t0 = rng.integers(T)
         P[b] = c["P"][np.clip(t0 + st * (np.arange(SEG) - SEG // 2), 0, T - 1)]
@@ -282,9 +282,9 @@ def loss_terms(out, Y):
 
 def git_commit() -> str:
     try:
-        head = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "HEAD"], capture_output=True, text=True).stdout.strip()
+        head = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "HEAD"], capture_output=True, text=True, check=False).stdout.strip()
         dirty = subprocess.run(["git", "-C", str(ROOT), "status", "--porcelain", "--untracked-files=no"],
-                               capture_output=True, text=True).stdout.strip()
+                               capture_output=True, text=True, check=False).stdout.strip()
         return head + ("+dirty" if dirty else "")
     except OSError:
         return "unknown"

@@ -33,8 +33,17 @@ from .errors import InputError
 from .layouts import normalise_point_name
 from .lifted import Lifted
 
-__all__ = ["BODY", "LifterModel", "load_lifter", "features", "lift", "HALF_WINDOW", "MODEL_FPS",
-           "CONFIDENCE_SIGMA_M", "LIMB_LENGTH_M"]
+__all__ = [
+    "BODY",
+    "CONFIDENCE_SIGMA_M",
+    "HALF_WINDOW",
+    "LIMB_LENGTH_M",
+    "MODEL_FPS",
+    "LifterModel",
+    "features",
+    "lift",
+    "load_lifter",
+]
 
 #: the lifter's points, in its input and output order
 BODY = ("left_shoulder", "right_shoulder", "left_elbow", "right_elbow", "left_wrist", "right_wrist",
@@ -211,7 +220,7 @@ def lift(tracks, camera=None, *, model: LifterModel | None = None) -> Lifted:
             conf[:, j] = tconf[:, index[n]]
     conf = np.where(np.all(np.isfinite(uv), axis=2), np.nan_to_num(conf), 0.0)
     xy = _camera_ray(camera, uv)
-    stride = max(1, int(round(float(tracks.fps) / MODEL_FPS))) if getattr(tracks, "fps", None) else 1
+    stride = max(1, round(float(tracks.fps) / MODEL_FPS)) if getattr(tracks, "fps", None) else 1
     X = features(xy if xy is not None else uv, conf, stride=stride, known=xy is not None)
     P, log_sigma = model.predict(X, stride)
     P = P - P[:, [BODY.index("left_hip"), BODY.index("right_hip")]].mean(1, keepdims=True)
