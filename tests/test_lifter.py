@@ -101,7 +101,7 @@ def test_the_lifter_orders_depth_on_a_subject_it_never_saw():
     perspective camera 45 degrees from side-on: the share of limb segments whose depth order
     along the line of sight is wrong stays under 20 % (16.5 % with the shipped weights; a lifter
     guessing depth order gets 50 %; the issue's target for the MAP, 5 %, is not met by the
-    lifter alone: bench/README.md, "The lifter")."""
+    lifter alone: bench/README.md, bench_lifter.py)."""
     tracks, cam, P, names = _held_out_run()
     L = lift(tracks, cam).select(names)
     assert L.frame == "camera" and L.points.shape == P.shape
