@@ -51,8 +51,9 @@ def test_demo_result_is_accurate_and_bvh_reads_back(demo_dir):
     data = load_result_npz(demo_dir / "result.npz")
     assert res.q.shape == (343, res.figure.nq) and np.all(np.isfinite(res.q))
     assert data["keypoints3d"].shape == (343, res.figure.K, 3)
-    # the written BVH, read back with pinrecon's own reader, reproduces the result's keypoints
-    back = load_bvh(demo_dir / "motion.bvh", 0.056444)
+    # the written BVH is in metres (as every export), and read back with pinrecon's own reader
+    # it reproduces the result's keypoints
+    back = load_bvh(demo_dir / "motion.bvh", 1.0)
     names = res.figure.keypoint_names
     np.testing.assert_allclose(back.figure.keypoints(back.q)[:, back.figure.keypoint_index(names)], res.keypoints3d, atol=1e-6)
     assert back.fps == pytest.approx(res.fps, rel=1e-7)  # CMU: Frame Time .0083333, i.e. 120.00048 fps

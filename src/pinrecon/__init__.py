@@ -5,14 +5,15 @@ Quick use::
     import pinrecon
     fig = pinrecon.Figure.human()                      # or Figure.from_urdf / from_bvh
     tracks = pinrecon.load_tracks("tracks.json")
-    cam = pinrecon.load_camera("camera.json")
+    cam = pinrecon.load_camera("camera.json")          # or Calib.toml, name="cam01"
     result = pinrecon.reconstruct(fig, tracks, cam, pinrecon.load_keyframes("keys.json"))
     result.save("result.npz")
 """
 
-from .cameras import Orthographic, Perspective, load_camera
+from .cameras import Orthographic, Perspective
 from .errors import InputError, PinreconError, UnknownNameError
 from .figure import Figure, Keypoint, load_keypoint_map
+from .io.calibration import load_camera, load_cameras
 from .problem import Weights
 from .reconstruct import reconstruct, reconstruct_markers
 from .result import Result, load_result
@@ -28,6 +29,7 @@ __all__ = [
     "Orthographic",
     "Perspective",
     "load_camera",
+    "load_cameras",
     "Tracks",
     "Markers",
     "Keyframe",

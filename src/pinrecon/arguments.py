@@ -46,6 +46,9 @@ def add_reconstruct_options(r, *, inputs=None, camera_required: bool = True, fig
         "centre (--image-size), the focal length from a 60 degree field of view (--fov) refined in the solve, "
         "the world placed at the camera unless point keyframes give its pose; 'auto:orthographic' likewise",
     )
+    r.add_argument("--camera-name", nargs="+", metavar="NAME",
+                   help="use only these cameras of the --camera files, in this order (e.g. cam_01 of a Pose2Sim "
+                   "Calib.toml, for that camera's --tracks)")
     r.add_argument("--image-size", type=float, nargs=2, metavar=("W", "H"),
                    help="image width and height in pixels, for --camera auto")
     r.add_argument("--fov", type=float, help="starting horizontal field of view of --camera auto, degrees (default 60)")
@@ -112,7 +115,7 @@ def reconstruct_from_args(args, callback=None):
     if stability_runs is not None and stability_runs < 1:
         raise InputError(f"must be a number of solves, at least 1; got {stability_runs}", field="--stability")
     auto = auto_camera_from_args(args)
-    cams = [auto] if auto is not None else cameras_for_tracks(args.camera, args.tracks)
+    cams = [auto] if auto is not None else cameras_for_tracks(args.camera, args.tracks, getattr(args, "camera_name", None))
     tracks = [load_tracks(path, fps=args.fps, person=args.person, layout=args.layout) for path in args.tracks]
     if getattr(args, "lifted", None):
         tracks = with_lifted(tracks, args)
@@ -195,13 +198,20 @@ def figure_from_args(args, tracks=None):
     return fig
 
 
-def cameras_for_tracks(camera_files, tracks_files):
+def cameras_for_tracks(camera_files, tracks_files, names=None):
     """The cameras of every ``--camera`` file, in order (a file's cameras in the file's
-    order), one per ``--tracks``; a mismatch is one clear error listing them."""
-    from .errors import InputError
+    order), or those called ``names`` (``--camera-name``) in that order, one per ``--tracks``;
+    a mismatch is one clear error listing them."""
+    from .errors import InputError, UnknownNameError
     from .io.calibration import load_cameras
 
     cams = [c for path in camera_files for c in load_cameras(path)]
+    if names:
+        by_name = {c.name: c for c in cams}
+        missing = [n for n in names if n not in by_name]
+        if missing:
+            raise UnknownNameError("camera", missing, list(by_name), field="--camera-name")
+        cams = [by_name[n] for n in names]
     if len(cams) != len(tracks_files):
         listed = ", ".join(f"{c.name!r}" for c in cams)
         raise InputError(

@@ -20,6 +20,11 @@ from .errors import PinreconError
 
 __all__ = ["main"]
 
+#: what --tracks reads (docs/formats.md)
+TRACKS_HELP = ("2D tracks: pinrecon tracks JSON/NPZ, an OpenPose folder of per-frame JSON (BODY_25, BODY_25B, "
+               "COCO-18), COCO keypoint annotations or results JSON, AlphaPose results JSON, MMPose / RTMPose "
+               "inferencer or demo JSON (COCO-17, Halpe-26/136, CrowdPose-14, H36M-17)")
+
 
 def _show_warning(message, category, filename, lineno, file=None, line=None):
     print(f"pinrecon: warning: {message}", file=sys.stderr)
@@ -122,7 +127,7 @@ def _outputs(args):
 def _save_and_report(res, args, outs) -> int:
     """Write the result (``--out``), the fitted figure (``--save-figure``) and, where the
     command has it, the camera (``--save-camera``), all or none (``outs.commit()``); then the
-    summary and the files written, unless ``--quiet``."""
+    summary and the files written, on stdout."""
     with outs.commit():
         res.save(args.out)
         written = [args.out]
@@ -130,10 +135,9 @@ def _save_and_report(res, args, outs) -> int:
             written += res.save_figure(args.save_figure)
         if getattr(args, "save_camera", None):
             written += _save_cameras(res, args.save_camera)
-    if not args.quiet:
-        print(res.summary(), file=sys.stderr)
-        for path in written:
-            print(f"wrote {path}", file=sys.stderr)
+    print(res.summary())  # the command's output: on stdout, also with --quiet (which silences progress only)
+    for path in written:
+        print(f"wrote {path}")
     return 0
 
 
@@ -275,12 +279,12 @@ def cmd_export(args) -> int:
 def cmd_edit(args) -> int:
     from .workbench.app import edit_from_args
 
-    return edit_from_args(args, figure_from_args(args) if args.figure else None,
-                          weights=weights_kwargs(args, ("sigma_px", "loss")))
+    figure = (lambda tracks: figure_from_args(args, [tracks])) if args.figure else None
+    return edit_from_args(args, figure, weights=weights_kwargs(args, ("sigma_px", "loss")))
 
 
 def cmd_links(args) -> int:
-    from .cameras import load_camera
+    from .io.calibration import load_camera
     from .planarity import links_report
     from .tracks import load_tracks
 
@@ -296,16 +300,19 @@ def cmd_links(args) -> int:
 def _tracks_option(r) -> None:
     r.add_argument(
         "--tracks", required=True, action="append",
-        help="tracks JSON/NPZ, OpenPose folder or COCO JSON; repeat it for several cameras (one per camera, "
+        help=TRACKS_HELP + "; repeat it for several cameras (one per camera, "
         "in the cameras' order; every camera's tracks start at the same instant)",
     )
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from . import __version__
+
     p = argparse.ArgumentParser(
         prog="pinrecon",
         description="Reconstruct 3D figure motion from 2D joint tracks seen by one or more cameras.",
     )
+    p.add_argument("--version", action="version", version=f"pinrecon {__version__}")
     sub = p.add_subparsers(dest="command", required=True)
     from .commands import register_all
 
@@ -325,14 +332,14 @@ def build_parser() -> argparse.ArgumentParser:
                    help="with --stability, solve J copies at once in separate processes (-1: one per CPU; "
                    "default one after another)")
     r.add_argument("--out", required=True, help="result NPZ")
-    r.add_argument("--quiet", action="store_true", help="no progress output")
+    r.add_argument("--quiet", action="store_true", help="no progress output (the summary and warnings are still shown)")
     r.set_defaults(func=cmd_reconstruct)
 
     d = sub.add_parser("demo", help="reconstruct the bundled CMU walk and write results, plots and exports")
     d.add_argument("--out", default="pinrecon-demo", help="output folder (default: ./pinrecon-demo)")
     d.add_argument("--frames", type=int, help="use only the first N frames (quicker)")
     d.add_argument("--no-pictures", action="store_true", help="skip the plots and the animation")
-    d.add_argument("--quiet", action="store_true", help="no progress output")
+    d.add_argument("--quiet", action="store_true", help="no progress output (the summary and warnings are still shown)")
     d.set_defaults(func=cmd_demo)
 
     pl = sub.add_parser("plot", help="draw the pictures of a result NPZ")
@@ -369,14 +376,19 @@ def build_parser() -> argparse.ArgumentParser:
     ed.add_argument("--keypoints", help="keypoint map JSON (for 'human': coco17 or joints)")
     ed.add_argument("--length-scale", type=float, default=1.0, help="metres per BVH unit (CMU: 0.056444)")
     ed.add_argument("--lock", nargs="*", help="BVH joints to weld (zero rotation)")
-    ed.add_argument("--tracks", required=True, help="tracks JSON/NPZ, OpenPose folder or COCO JSON")
+    ed.add_argument("--tracks", required=True, help=TRACKS_HELP)
+    detector_options(ed)
     ed.add_argument("--fps", type=float, help="frame rate of OpenPose/COCO tracks")
-    ed.add_argument("--camera", required=True, help="camera JSON")
+    ed.add_argument("--camera", help="a calibration file, or 'auto' / 'auto:orthographic' as for reconstruct "
+                    "(default: the --result's own camera)")
+    ed.add_argument("--image-size", type=float, nargs=2, metavar=("W", "H"), help="image size, for --camera auto")
+    ed.add_argument("--fov", type=float, help="starting horizontal field of view of --camera auto, degrees")
     ed.add_argument("--keyframes", help="keyframes JSON to start from")
     ed.add_argument("--result", help="result NPZ to start from (default: solve once first)")
     ed.add_argument("--fps-out", type=float, help="reconstruction rate (integer multiple of the tracks' rate)")
     ed.add_argument("--sigma-px", type=float, help="2D noise, pixels (default 2)")
-    ed.add_argument("--loss", choices=["l2", "huber", "cauchy"], help="measurement loss (default l2)")
+    ed.add_argument("--loss", choices=["auto", "l2", "huber", "cauchy"],
+                    help="measurement loss (default auto, as for reconstruct)")
     add_pose_prior_argument(ed)
     ed.add_argument("--floor", help="feet on the ground in the whole re-solves, as for reconstruct ('auto', "
                     "'none', a plane; default: reconstruct's, on for --figure human)")
@@ -407,14 +419,15 @@ def build_parser() -> argparse.ArgumentParser:
     fm.add_argument("--max-iterations", type=int, default=100)
     fm.add_argument("--save-figure", metavar="FILE.urdf", help="write the (fitted) figure's URDF and keypoint map")
     fm.add_argument("--out", required=True, help="result NPZ")
-    fm.add_argument("--quiet", action="store_true", help="no progress output")
+    fm.add_argument("--quiet", action="store_true", help="no progress output (the summary and warnings are still shown)")
     fm.set_defaults(func=cmd_fit_markers)
 
     li = sub.add_parser("links", help="discover rigid links and hinges in 2D tracks (planarity)")
-    li.add_argument("tracks", help="tracks JSON/NPZ, OpenPose folder or COCO JSON")
+    li.add_argument("tracks", help=TRACKS_HELP)
     li.add_argument("--fps", type=float, help="frame rate of OpenPose/COCO tracks")
     detector_options(li)
-    li.add_argument("--quiet", action="store_true", help="no warnings")
+    li.add_argument("--quiet", action="store_true", help="no progress output (the command has none; warnings are "
+                    "still shown)")
     li.add_argument("--camera", help="orthographic camera JSON, to give lengths in metres")
     li.add_argument("--scale", type=float, help="pixels per metre, to give lengths in metres")
     li.add_argument("--names", nargs="*", help="only these tracked points")
@@ -427,10 +440,7 @@ def main(argv=None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     with warnings.catch_warnings():
-        if getattr(args, "quiet", False):
-            warnings.simplefilter("ignore")
-        else:
-            warnings.showwarning = _show_warning
+        warnings.showwarning = _show_warning  # also with --quiet: it silences progress only
         try:
             return args.func(args)
         except PinreconError as exc:

@@ -196,14 +196,14 @@ def run_demo(out_dir="pinrecon-demo", *, frames: int | None = None, pictures: bo
     files = [out / "tracks.json", out / "camera.json", out / "keyframes.json"]
     res.save(out / "result.npz")
     write_csv(out / "joint_angles.csv", res)
-    write_bvh(out / "motion.bvh", figure, res.q, res.fps)
+    write_bvh(out / "motion.bvh", figure, res.q, res.fps, unit="m")  # metres, as every export
     files += [out / "result.npz", out / "joint_angles.csv", out / "motion.bvh"]
     note = ""
     if pictures:
         try:
             import matplotlib  # noqa: F401
         except ImportError:
-            note = 'no pictures: matplotlib is not installed (pip install "pinrecon[viz]")'
+            note = 'no pictures: matplotlib is not installed (from a pinrecon checkout: pip install ".[viz]")'
         else:
             from .io.bvh import BvhMotion
             from .viz import plot_result

@@ -17,7 +17,7 @@ from .contact import FOOT_EXTRAS, FootContact, foot_metrics
 #: extras of the hypotheses start, the fault stage, the pose prior's check and :mod:`pinrecon.stability`,
 #: kept by :func:`load_result`
 FAULT_EXTRAS_PREFIXES = ("hypothesis_", "repaired_", "outlier_", "prior_", "solution_turns", "solution_mirrors",
-                         "mirror_chains", "mirror_uncertain", "stability_")
+                         "mirror_chains", "mirror_uncertain", "stability_", "run_time_s")
 from .errors import InputError
 from .figure import Figure, parse_keypoint_entries
 from .io.fields import string_field
@@ -155,10 +155,13 @@ class Result:
             for name, e in zip(self.camera_names, per):
                 m = np.nanmean(e) if np.any(np.isfinite(e)) else float("nan")
                 lines.append(f"  camera {name!r}: {m:.3f} px")
+        run = self.extras.get("run_time_s")
         if s is not None:
-            lines.append(
-                f"solver: {s.status} after {s.iterations} iterations in {s.time:.2f} s, cost {s.initial_cost:.6g} -> {s.cost:.6g}"
-            )
+            took = f"solved in {float(run):.1f} s in all" if run is not None else f"solved in {s.time:.2f} s"
+            lines.append(f"{took}; the last solve stopped ({s.status}) after {s.iterations} iterations, cost "
+                         f"{s.initial_cost:.6g} -> {s.cost:.6g} (cost: see docs/glossary.md)")
+        elif run is not None:
+            lines.append(f"solved in {float(run):.1f} s in all")
         lines += self.stages_summary()
         lines += self.calibration_summary()
         lines += self.feet_summary()
@@ -187,10 +190,10 @@ class Result:
             chains, spans, thr = hypothesis_spans(x)
             unc = spans[spans[:, 4] < thr]
             lines.append(f"limb reflections: {len(spans)} spans over {len(chains)} limbs, {len(unc)} uncertain "
-                         f"(cost gap < {thr:g} nats: a keyframe there would decide them)")
+                         f"(the mirror costs less than {thr:g} more: a keyframe there would decide them)")
             for c, a, b, _, gap in unc[np.argsort(unc[:, 4])][:limit]:
                 lines.append(f"  {chains[int(c)]}: frames {int(a)}-{int(b) - 1} ({a / self.fps:.2f}-"
-                             f"{(b - 1) / self.fps:.2f} s), gap {gap:.1f}")
+                             f"{(b - 1) / self.fps:.2f} s), the mirror costs {gap:.1f} more")
             if len(unc) > limit:
                 lines.append(f"  ... and {len(unc) - limit} more")
         for key, who, where in (("hypothesis_turns", "start took", "pinrecon.starts.turns"),
@@ -198,28 +201,28 @@ class Result:
             wound = np.asarray(x.get(key, np.zeros((0, 4))), float).reshape(-1, 4)
             for a, b, k, gain in wound[wound[:, 2] != 0]:
                 lines.append(f"trunk turned {int(k):+d} whole turn in frames {int(a)}-{int(b) - 1} ({a / self.fps:.2f}-"
-                             f"{(b - 1) / self.fps:.2f} s), {gain:.0f} nats cheaper (a fast turn the {who} the "
+                             f"{(b - 1) / self.fps:.2f} s), cost {gain:.0f} lower (a fast turn the {who} the "
                              f"wrong way round; {where})")
         mirrors = np.asarray(x.get("solution_mirrors", np.zeros((0, 5))), float).reshape(-1, 5)
         kept = mirrors[np.isfinite(mirrors[:, 4])]
         if len(kept):
             labels = [str(c) for c in np.asarray(x.get("mirror_chains", []), dtype=str)]
             lines.append(f"limb spans mirrored after the solve: {len(kept)} of {len(mirrors)} tried, "
-                         f"{float(kept[:, 4].sum()):.0f} nats cheaper (pinrecon.starts.mirrors.mirror_stage)")
+                         f"cost {float(kept[:, 4].sum()):.0f} lower (pinrecon.starts.mirrors.mirror_stage)")
             for c, _, a, b, gain in kept[np.argsort(-kept[:, 4])][:limit]:
                 name = labels[int(c)] if int(c) < len(labels) else str(int(c))
                 lines.append(f"  {name}: frames {int(a)}-{int(b) - 1} ({a / self.fps:.2f}-{(b - 1) / self.fps:.2f} s), "
-                             f"{gain:.0f} nats")
+                             f"cost {gain:.0f} lower")
             if len(kept) > limit:
                 lines.append(f"  ... and {len(kept) - limit} more")
         labels, ties, tie = mirror_uncertain(x)
         if len(ties):
-            lines.append(f"limb spans whose mirror costs about the same (within {tie:g} nats): {len(ties)}, "
+            lines.append(f"limb spans whose mirror costs about the same (within {tie:g}): {len(ties)}, "
                          "uncertain: a keyframe there would decide them (pinrecon.starts.mirrors)")
             for c, a, b, gain in ties[np.argsort(np.abs(ties[:, 3]))][:limit]:
                 name = labels[int(c)] if int(c) < len(labels) else str(int(c))
                 lines.append(f"  {name}: frames {int(a)}-{int(b) - 1} ({a / self.fps:.2f}-{(b - 1) / self.fps:.2f} s), "
-                             f"the mirror {abs(gain):.1f} nats {'cheaper' if gain > 0 else 'dearer'}")
+                             f"the mirror costs {abs(gain):.1f} {'less' if gain > 0 else 'more'}")
             if len(ties) > limit:
                 lines.append(f"  ... and {len(ties) - limit} more")
         if "prior_default_unfamiliar" in x:
@@ -234,11 +237,12 @@ class Result:
             fallback = (f"; the broader {x['prior_model']!s} they were solved with is a fallback, no surer of them"
                         if judge and "prior_model" in x else "")
             lines.append(f"poses unlike {whose} in {n} of {len(d)} frames ({100 * n / len(d):.0f} %; "
-                         f"Mahalanobis distance > {lim:.1f}, their 99th percentile): limb depths there are the "
+                         f"more than {lim:.1f} standard deviations from its typical poses, its 99th percentile): limb "
+                         "depths there are the "
                          f"prior's extrapolation and may be mirrored{fallback}; 3D keyframes there would decide them")
             for a, b in sp[np.argsort([-d[a:b].max() for a, b in sp])][:limit]:
                 lines.append(f"  frames {a}-{b - 1} ({a / self.fps:.2f}-{(b - 1) / self.fps:.2f} s), "
-                             f"distance up to {d[a:b].max():.1f}")
+                             f"up to {d[a:b].max():.1f} standard deviations")
             if len(sp) > limit:
                 lines.append(f"  ... and {len(sp) - limit} more")
         if "prior_distance" not in x and self.figure is not None:
@@ -268,13 +272,14 @@ class Result:
         fitted, generic = c.get("lengths_m") or {}, c.get("generic_lengths_m") or {}
         if fitted:
             lines.append("  segment lengths (generic -> fitted):")
-            items = [f"{g} {generic.get(g, float('nan')):.3f} -> {m:.3f} m ({100 * (m / generic[g] - 1):+.1f} %)"
-                     if generic.get(g) else f"{g} {m:.3f} m" for g, m in fitted.items()]
+            items = [f"{plain_segment(g)} {generic.get(g, float('nan')):.3f} -> {m:.3f} m "
+                     f"({100 * (m / generic[g] - 1):+.1f} %)"
+                     if generic.get(g) else f"{plain_segment(g)} {m:.3f} m" for g, m in fitted.items()]
             lines += [f"    {'; '.join(items[i:i + 3])}" for i in range(0, len(items), 3)]
         measured = c.get("lengths_from_tracks") or {}
         if measured:  # no 3D keyframe: the fit started at what the tracks measure (reconstruct's lengths_from_tracks)
             lines.append("  measured from the tracks (the fit's start; other groups held at the figure's): "
-                         + "; ".join(f"{g} {m:.3f} m" for g, m in measured.items()))
+                         + "; ".join(f"{plain_segment(g)} {m:.3f} m" for g, m in measured.items()))
         lines += _identifiability_lines(c.get("identifiability"), list(fitted))
         for name, cam in (c.get("cameras") or {}).items():
             what, unit = ("focal length", "px") if cam.get("quantity") == "focal_px" else ("scale", "px/m")
@@ -391,6 +396,16 @@ def _stages(d, path) -> list[StageReport]:
         raise InputError(f"not a list of stage reports ({exc})", file=path, field="stages") from None
 
 
+def plain_segment(name: str) -> str:
+    """A segment or group name as the summary shows it: a segment that only carries keypoints
+    (``middle_pelvis.keypoints``) is named by its body (``pelvis keypoints``), without the
+    figure's internal suffix and side prefix ``middle_``."""
+    name = str(name)
+    if name.endswith(".keypoints"):
+        name = name[: -len(".keypoints")] + " keypoints"
+    return name.removeprefix("middle_").replace("_", " ") if "." not in name else name
+
+
 def _identifiability_lines(ident, groups: list[str]) -> list[str]:
     """The calibration summary's word on the lengths the data do not fix
     (:func:`pinrecon.identifiability.proportions_identifiability`)."""
@@ -405,7 +420,8 @@ def _identifiability_lines(ident, groups: list[str]) -> list[str]:
                      "nothing in the tracks: the pose prior and the joint limits chose the values. A 3D keyframe, "
                      "a second camera or 3D markers fix them")
     elif und:
-        lines.append(f"  NOT fixed by the data alone: {'any of these lengths' if every else ', '.join(und)} (a small "
+        named = "any of these lengths" if every else ", ".join(plain_segment(g) for g in und)
+        lines.append(f"  NOT fixed by the data alone: {named} (a small "
                      "change is taken up by the poses at no cost in the data, so the priors chose the value)")
     if not ident.get("size_determined", True) and not every:
         lines.append("  NOT fixed by the data alone: the overall size (all lengths larger or smaller together, at no "

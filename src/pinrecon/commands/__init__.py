@@ -10,7 +10,7 @@ from __future__ import annotations
 import importlib
 
 #: Command modules, in the order their commands appear in ``pinrecon --help``.
-MODULES: list[str] = ["track", "video", "batch"]
+MODULES: list[str] = ["track", "video", "batch", "data"]
 
 
 def register_all(sub) -> None:

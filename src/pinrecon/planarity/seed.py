@@ -572,6 +572,25 @@ def limb_flip_rate(
 # --------------------------------------------------------------------------
 # links report (pinrecon links TRACKS)
 # --------------------------------------------------------------------------
+#: image noise (px) above which the planarity test's threshold, which grows with the noise,
+#: passes triples of points that are not joined on the body (docs/planarity.md, section 7)
+TRUSTED_NOISE_PX = 2.0
+
+
+def trust_lines(noise_px: float) -> list[str]:
+    """What :func:`links_report` says about how far its fits can be trusted: always the
+    assumptions, and a NOT TRUSTWORTHY line when the image noise is above
+    :data:`TRUSTED_NOISE_PX` (detector output of real footage)."""
+    out = []
+    if not noise_px <= TRUSTED_NOISE_PX:
+        out.append(f"NOT TRUSTWORTHY: image noise ~{noise_px:.3g} px is above {TRUSTED_NOISE_PX:g} px, where the test "
+                   "passes many triples of points that are not joined on the body; read the hinges below as "
+                   "candidates, not findings")
+    out.append("the fits assume a far camera (orthographic) and joints that turn about fixed axes over the clip; a "
+               "hinge between points that are not neighbours on the body passed by chance")
+    return out
+
+
 def links_report(
     tracks, *, scale: float | None = None, names: Sequence[str] | None = None, all: bool = False, **kwargs
 ) -> str:
@@ -622,6 +641,7 @@ def links_report(
     lines = [
         f"{len(names)} points, {tracks.T} frames at {tracks.fps:g} fps; image noise ~{sig:.3g} px"
         + (f"; scale {float(scale):g} px/m" if scale else ""),
+        *trust_lines(sig),
         f"{len(g.triples)} hinged triples and {len(g.links)} links pass the planarity test"
         + ("" if all else " (shown: per hinge the triple with the shortest rods; per point its shortest link)"),
         "normals: camera axes (x right, y down, z forward), one member of the reflection pair; "

@@ -217,11 +217,11 @@ def auto_camera(tracks, figure=None, image_size=None, projection: str = "perspec
     if not names:
         raise InputError("the tracks share no point with the figure", file=getattr(tracks, "source", None),
                          field="names")
-    uv = tracks.select(names).points
-    seen = np.isfinite(uv[..., 0]).sum(axis=1) >= 2
+    tracked_px = tracks.select(names).points  # (T, K, 2); uv stays the keyframes' correspondences
+    seen = np.isfinite(tracked_px[..., 0]).sum(axis=1) >= 2
     spread_px = float("nan")
     if seen.any():
-        spread = np.nanmax(uv[seen], axis=1) - np.nanmin(uv[seen], axis=1)  # (T', 2)
+        spread = np.nanmax(tracked_px[seen], axis=1) - np.nanmin(tracked_px[seen], axis=1)  # (T', 2)
         spread_px = float(np.median(spread.max(axis=1)))
     size_m = _figure_height_m(figure, names)
     if not (np.isfinite(spread_px) and spread_px > 0 and size_m > 0):

@@ -36,7 +36,7 @@ def require_matplotlib():
     except ImportError as exc:  # pragma: no cover - depends on the environment
         raise MissingDependencyError(
             "pinrecon's plots and animations need matplotlib; install the 'viz' extra: "
-            "pip install 'pinrecon[viz]'"
+            "from a pinrecon checkout, pip install \".[viz]\" (or pip install matplotlib)"
         ) from exc
     return Figure, FigureCanvasAgg
 
@@ -323,7 +323,8 @@ def default_camera():
 def second_view_camera(camera, second_view=None, up=None):
     """The second viewpoint: a camera, or the camera turned by ``second_view`` degrees
     (default 90) about the world up axis (``up``, default the coordinate axis nearest the
-    camera's up). Returned as an orthographic camera in metres (scale 1)."""
+    camera's up), levelled (its image's vertical is ``up``). Returned as an orthographic
+    camera in metres (scale 1)."""
     from scipy.spatial.transform import Rotation
 
     from ..cameras import Camera, Orthographic
@@ -332,8 +333,23 @@ def second_view_camera(camera, second_view=None, up=None):
         return second_view
     angle = 90.0 if second_view is None else float(second_view)
     up = camera_up(camera) if up is None else np.asarray(up, float) / np.linalg.norm(up)
-    G = Rotation.from_rotvec(np.radians(angle) * up).as_matrix()  # turns the camera in the world
-    return Orthographic(np.asarray(camera.R, float) @ G.T, 1.0, (0.0, 0.0))
+    R = np.asarray(camera.R, float)
+    fwd = R[2] - (R[2] @ up) * up  # the camera's viewing direction, levelled
+    if np.linalg.norm(fwd) < 1e-6:  # looking straight down or up: its image's up, levelled
+        fwd = -R[1] - (-R[1] @ up) * up
+    fwd = Rotation.from_rotvec(np.radians(angle) * up).apply(fwd / np.linalg.norm(fwd))
+    y = -up  # a level view: image y down is the world's down, so the floor is a horizontal line
+    return Orthographic(np.stack([np.cross(y, fwd), y, fwd]), 1.0, (0.0, 0.0))
+
+
+def view_up(camera, feet=None) -> np.ndarray:
+    """The world up of the pictures' second view: the floor's normal when the result has a
+    floor (turned to the camera's up side), else the coordinate axis nearest the camera's up."""
+    up = camera_up(camera)
+    if feet is None:
+        return up
+    n = np.asarray(feet.floor.n, float)
+    return n if n @ up >= 0 else -n
 
 
 def view_unit(camera) -> str:
@@ -380,7 +396,8 @@ def height_ticks(ax, floor=None, up=None):
     heights = [h for h in MaxNLocator(5).tick_values(lo, hi) if lo <= h <= hi]
     ax.set_yticks([-(h + off) for h in heights], [f"{h:.3g}" for h in heights])
     ax.set_ylim(v0, v1)
-    return "height above the floor" if floor is not None else "height"
+    level = floor is not None and up is not None and abs(float(np.dot(floor.n, up))) > 0.99
+    return "height above the floor" if level else "height"
 
 
 def floor_segment(view, floor, centre_world, half_m: float) -> np.ndarray:

@@ -15,7 +15,7 @@ from ..io.atomic import atomic_path
 from ._common import (
     MissingDependencyError,
     as_motion,
-    camera_up,
+    view_up,
     check_frames,
     default_camera,
     draw_contacts,
@@ -105,7 +105,9 @@ def animate(
 
     cam = camera if camera is not None else getattr(result, "camera", None)
     cam = cam or default_camera()
-    cam2 = second_view_camera(cam, second_view, up)
+    feet = motion.feet
+    up_w = view_up(cam, feet) if up is None else np.asarray(up, float) / np.linalg.norm(up)
+    cam2 = second_view_camera(cam, second_view, up_w)
     sk = skeleton(motion.figure)
     P = skeleton_points(motion, sk, idx)
     TP = tsk = None
@@ -114,9 +116,7 @@ def animate(
         tsk = skeleton(tmotion.figure)
         TP = skeleton_points(tmotion, tsk, [tmotion.frame_at(motion.times[f]) for f in idx])
 
-    feet = motion.feet
     fidx = motion.figure.keypoint_index(feet.names) if feet is not None else None
-    up_w = camera_up(cam) if up is None else np.asarray(up, float) / np.linalg.norm(up)
     fig = new_figure(size_in, dpi=dpi)
     axes = fig.subplots(1, 2)
     artists = []

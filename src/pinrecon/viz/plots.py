@@ -28,7 +28,7 @@ import numpy as np
 from ..errors import InputError, UnknownNameError
 from ._common import (
     as_motion,
-    camera_up,
+    view_up,
     check_frames,
     default_camera,
     draw_contacts,
@@ -206,7 +206,9 @@ def plot_stick_strip(
     T = len(motion.times)
     frames = even_frames(T, 6) if frames is None else check_frames(frames, T)
     cam = _resolve_camera(result, camera) or default_camera()
-    cam2 = second_view_camera(cam, second_view, up)
+    feet = motion.feet
+    up_w = view_up(cam, feet) if up is None else np.asarray(up, float) / np.linalg.norm(up)
+    cam2 = second_view_camera(cam, second_view, up_w)
     sk = skeleton(motion.figure)
     P = skeleton_points(motion, sk, frames)
     tmotion = tsk = TP = None
@@ -216,10 +218,8 @@ def plot_stick_strip(
         tframes = [tmotion.frame_at(motion.times[f]) for f in frames]
         TP = skeleton_points(tmotion, tsk, tframes)
     n = len(frames)
-    feet = motion.feet
     fig = new_figure((1.9 * n + 0.6, 4.8))
     axes = np.atleast_2d(fig.subplots(2, n, squeeze=False))
-    up_w = camera_up(cam) if up is None else np.asarray(up, float) / np.linalg.norm(up)
     for row, view in enumerate((cam, cam2)):
         uv = view.project(P)
         tuv = view.project(TP) if TP is not None else None

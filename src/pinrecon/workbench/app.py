@@ -31,8 +31,21 @@ def _viser():
     try:
         import viser
     except ImportError:  # pragma: no cover - depends on the install
-        raise PinreconError("the workbench needs the 'edit' extra: pip install 'pinrecon[edit]'") from None
+        raise PinreconError('the workbench needs the \'edit\' extra: from a pinrecon checkout, '
+                            'pip install ".[edit]"') from None
     return viser
+
+
+def view_half_px(uv_px: np.ndarray) -> float:
+    """Half the camera view's size: 0.6 times the tracks' largest per-frame extent over
+    frames with two or more points seen (``uv_px`` (T, K, 2)); 100 px when there is none."""
+    uv_px = np.asarray(uv_px, float)
+    seen = np.isfinite(uv_px).all(axis=2)
+    frames = seen.sum(axis=1) >= 2
+    if not frames.any():
+        return 100.0
+    ext = [np.ptp(uv_px[t][seen[t]], axis=0).max() for t in np.flatnonzero(frames)]
+    return 0.6 * float(max(ext))
 
 
 def _wxyz(R_world_cam: np.ndarray) -> tuple[float, float, float, float]:
@@ -111,9 +124,7 @@ class Workbench:
         self.keyed = sc.add_point_cloud("/figure/keyed", np.zeros((1, 3)), (240, 170, 0), point_size=0.06,
                                         point_shape="diamond", visible=False)
         # the camera view follows the figure at one scale: the largest per-frame extent
-        uv = s.tracks.select(self.track_names).points
-        ext = np.nanmax(np.ptp(uv, axis=1), axis=1) if np.isfinite(uv).any() else np.ones(1)
-        self.view_half = 0.6 * float(np.nanmax(ext)) if np.isfinite(ext).any() else 100.0
+        self.view_half = view_half_px(s.tracks.select(self.track_names).points)
         # the page's own viewpoint: 60 degrees round from the camera's, a little above
         from scipy.spatial.transform import Rotation
 
@@ -373,20 +384,53 @@ def serve(session: Session, *, host="127.0.0.1", port=8080, open_browser=True, b
 
 def edit_from_args(args, figure=None, weights: dict | None = None) -> int:
     """``pinrecon edit``: load the inputs (and a result NPZ) and serve the workbench with
-    ``Weights(**weights)`` (the command line's, :func:`pinrecon.cli.pose_prior_weights`)."""
-    from .. import Weights, load_camera, load_keyframes, load_result, load_tracks
+    ``Weights(**weights)`` (the command line's, :func:`pinrecon.cli.pose_prior_weights`).
+
+    ``figure``: a function of the tracks giving the ``--figure`` (None: the result's own).
+    With ``--result`` the result's own figure and fitted camera are used unless ``--figure``
+    or ``--camera`` is given, which is said on stderr. Without a result the first solve is
+    :func:`pinrecon.reconstruct` with the command's inputs and ``reconstruct``'s defaults
+    (``--camera auto`` included), and the workbench opens on its figure and camera."""
+    import sys
+
+    from .. import Weights, load_keyframes, load_result, load_tracks, reconstruct
+    from ..io.calibration import load_camera
+    from ..starts.camera_auto import DEFAULT_FOV_DEG, AutoCamera
 
     result = load_result(args.result) if args.result else None
-    if figure is None:
+    tracks = load_tracks(args.tracks, fps=args.fps, person=getattr(args, "person", None),
+                         layout=getattr(args, "layout", None))
+    given = figure(tracks) if callable(figure) else figure
+    if given is None:
         if result is None or result.figure is None:
             raise PinreconError("pinrecon edit: give --figure (or a --result NPZ that embeds its figure)")
-        figure = result.figure
-    tracks = load_tracks(args.tracks, fps=args.fps)
-    camera = load_camera(args.camera)
+        given = result.figure
+    elif result is not None and result.figure is not None:
+        print(f"pinrecon edit: --figure {getattr(args, 'figure', '')} overrides the result's own figure (its fitted "
+              "lengths); leave --figure out to edit on the result's", file=sys.stderr)
+    spec = getattr(args, "camera", None)
+    auto = spec is not None and spec.split(":")[0] == "auto"
+    if spec is None or (auto and result is not None):
+        if result is None or result.camera is None:
+            raise PinreconError("pinrecon edit: give --camera (a calibration file or auto) or a --result NPZ")
+        camera = result.camera  # the result's own (fitted) camera
+    elif auto:
+        proj = spec.split(":", 1)[1] if ":" in spec else "perspective"
+        fov = getattr(args, "fov", None)
+        camera = AutoCamera(getattr(args, "image_size", None), proj, DEFAULT_FOV_DEG if fov is None else fov)
+    else:
+        camera = load_camera(spec)
+        if result is not None:
+            print(f"pinrecon edit: --camera {spec} overrides the result's own camera", file=sys.stderr)
     keys = load_keyframes(args.keyframes) if args.keyframes else None
-    if result is None:
-        print("pinrecon edit: solving once before serving ...", file=__import__("sys").stderr, flush=True)
-    session = Session(figure, tracks, camera, keys, result=result, fps_out=args.fps_out, weights=Weights(**(weights or {})),
+    w = Weights(**(weights or {}))
+    if result is None:  # the first solve is reconstruct's, with its defaults
+        print("pinrecon edit: solving once (as pinrecon reconstruct would) before serving ...", file=sys.stderr,
+              flush=True)
+        result = reconstruct(given, tracks, camera, keys, fps_out=args.fps_out, weights=w,
+                             floor=getattr(args, "floor", None))
+        given, camera = result.figure, result.camera
+    session = Session(given, tracks, camera, keys, result=result, fps_out=args.fps_out, weights=w,
                       floor=getattr(args, "floor", None))
     out = Path(args.out)
     serve(session, host=args.host, port=args.port, open_browser=not args.no_browser, out_dir=out,

@@ -525,7 +525,7 @@ class Session:
         out = []
         res = self.result()
         if bvh is not None:
-            write_bvh(bvh, self.figure, res.q, res.fps)
+            write_bvh(bvh, self.figure, res.q, res.fps, unit="m")  # metres, as every export
             out.append(Path(bvh))
         if csv is not None:
             write_csv(csv, res)
