@@ -285,7 +285,7 @@ def test_cli_camera_auto_and_save_camera(coco_walk, tmp_path, capsys):
     assert main(base) == 2
     assert "--image-size" in capsys.readouterr().err
     assert main(base + ["--image-size", "1280", "720", "--save-camera", str(tmp_path / "cam.json")]) == 0
-    err = capsys.readouterr().err
+    err = capsys.readouterr().out  # the summary is the command's output, on stdout
     assert "auto camera (perspective)" in err and "focal length 1108.5 ->" in err
     # what the tracks say of the focal length is in the summary, not only in a warning
     assert res_focal_line(err) == pr.load_result(tmp_path / "r.npz").calibration["camera_auto"]["focal"]["message"]

@@ -182,7 +182,7 @@ def test_cli_pose_prior_model(tmp_path, capsys):
     capsys.readouterr()
     # without it, the summary says that it fits (the human's summary does not)
     assert main(["reconstruct", "--camera", str(tmp_path / "cam.json"), *bvh, "--out", str(tmp_path / "r0.npz")]) == 0
-    assert "but 'cmu_bvh_pose' fits this figure" in capsys.readouterr().err
+    assert "but 'cmu_bvh_pose' fits this figure" in capsys.readouterr().out  # the summary, on stdout
     assert "but 'cmu_bvh_pose' fits this figure" in pr.load_result(tmp_path / "r0.npz").summary()
     assert "fits this figure" not in pr.load_result(tmp_path / "r.npz").summary()
     human = ["--figure", "human", "--tracks", str(tmp_path / "coco.json")]

@@ -156,7 +156,7 @@ def test_the_report_and_the_summary_say_what_was_wound():
     assert ex["hypothesis_turns"].tolist() == [[2.0, 8.0, -1.0, 812.4], [8.0, 10.0, 0.0, 0.0]]
     lines = pr.Result.faults_summary(SimpleNamespace(extras=ex, fps=30.0, figure=None))
     wound = [s for s in lines if s.startswith("trunk turned")]
-    assert wound == [("trunk turned -1 whole turn in frames 2-7 (0.07-0.23 s), 812 nats cheaper (a fast turn the "
+    assert wound == [("trunk turned -1 whole turn in frames 2-7 (0.07-0.23 s), cost 812 lower (a fast turn the "
                       "start took the wrong way round; pinrecon.starts.turns)")]
     assert "hypothesis_turns" in HypothesisReport([], np.zeros((1, 0), int), np.zeros((1, 0))).to_extras()
 

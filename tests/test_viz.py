@@ -323,7 +323,7 @@ def test_missing_matplotlib_names_the_extra(monkeypatch):
     from pinrecon.viz import _common
 
     monkeypatch.setitem(sys.modules, "matplotlib.figure", None)
-    with pytest.raises(MissingDependencyError, match=r"pinrecon\[viz\]"):
+    with pytest.raises(MissingDependencyError, match=r"pip install \"\.\[viz\]\""):
         _common.require_matplotlib()
     assert issubclass(MissingDependencyError, ImportError)
     assert issubclass(MissingDependencyError, pinrecon.PinreconError)
