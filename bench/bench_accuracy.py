@@ -10,6 +10,10 @@ depth sign is flipped (pinrecon.planarity.limb_flip_rate), iterations and time.
 
 from __future__ import annotations
 
+import quick  # noqa: E402 - bench/quick.py: --quick, applied before pinrecon is imported
+
+QUICK = quick.take([])
+
 import time
 
 import numpy as np

@@ -31,6 +31,10 @@ Run: ``OPENBLAS_NUM_THREADS=1 python bench/bench_calibration.py`` (about 5 minut
 
 from __future__ import annotations
 
+import quick  # noqa: E402 - bench/quick.py: --quick, applied before pinrecon is imported
+
+QUICK = quick.take(["--clips", "walk"])
+
 import argparse
 import os
 import time

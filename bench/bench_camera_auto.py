@@ -31,6 +31,10 @@ Run: ``OPENBLAS_NUM_THREADS=1 python bench/bench_camera_auto.py`` (about 3 minut
 
 from __future__ import annotations
 
+import quick  # noqa: E402 - bench/quick.py: --quick also cuts the clips, before pinrecon is imported
+
+QUICK = "--quick" in __import__("sys").argv and quick.take(["--every", "4"]) and __import__("sys").argv.append("--quick") is None
+
 import argparse
 import os
 import time

@@ -35,6 +35,10 @@ the motion itself). Scored against the clip:
 
 from __future__ import annotations
 
+import quick  # noqa: E402 - bench/quick.py: --quick, applied before pinrecon is imported
+
+QUICK = quick.take(["--clips", "walk", "--cases", "lab"])
+
 import argparse
 import time
 

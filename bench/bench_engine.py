@@ -43,6 +43,10 @@ Run: ``OPENBLAS_NUM_THREADS=1 python bench/bench_engine.py --scipy-frames 120`` 
 
 from __future__ import annotations
 
+import quick  # noqa: E402 - bench/quick.py: --quick, applied before pinrecon is imported
+
+QUICK = quick.take(["--frames", "100", "--scipy-frames", "50", "--memory-sizes", "100", "--skip-dance", "--calibration-pairs", "2"], cut=False)
+
 import argparse
 import json
 import os

@@ -20,6 +20,10 @@ Run: ``OPENBLAS_NUM_THREADS=1 python bench/bench_globals.py`` (about 2 minutes;
 
 from __future__ import annotations
 
+import quick  # noqa: E402 - bench/quick.py: --quick, applied before pinrecon is imported
+
+QUICK = quick.take(["--frames", "100", "--skip-scaling"], cut=False)
+
 import argparse
 import json
 import os

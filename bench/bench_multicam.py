@@ -30,6 +30,10 @@ wrong in any camera's view (:func:`pinrecon.planarity.limb_flip_rate`, the worst
 
 from __future__ import annotations
 
+import quick  # noqa: E402 - bench/quick.py: --quick, applied before pinrecon is imported
+
+QUICK = quick.take([])
+
 import os
 import time
 

@@ -21,6 +21,10 @@ seed trajectory itself, before the batch solve.
 
 from __future__ import annotations
 
+import quick  # noqa: E402 - bench/quick.py: --quick, applied before pinrecon is imported
+
+QUICK = quick.take(["--clips", "walk", "--azimuth", "45"])
+
 import argparse
 import os
 import sys

@@ -24,6 +24,10 @@ here on every pair).
 
 from __future__ import annotations
 
+import quick  # noqa: E402 - bench/quick.py: --quick, applied before pinrecon is imported
+
+QUICK = quick.take(["--cases", "walk:none:45", "--runs", "1"])
+
 import argparse
 import os
 import time

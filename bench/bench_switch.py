@@ -19,6 +19,14 @@ says whether it switched and at what share of the main solve's frames).
 
 from __future__ import annotations
 
+import quick  # noqa: E402 - bench/quick.py: --quick, applied before pinrecon is imported
+
+QUICK = quick.take(["--frames", "60", "--angles", "45", "--priors", "auto"])
+if QUICK:  # the clip: the dance pinrecon fetches
+    from pinrecon import datasets as _datasets
+
+    __import__("sys").argv.insert(1, str(_datasets.clip("dance")))
+
 import argparse
 import json
 import os

@@ -29,6 +29,10 @@ truth has more flips. A large share at 10 nats means the data leave those spans 
 
 from __future__ import annotations
 
+import quick  # noqa: E402 - bench/quick.py: --quick, applied before pinrecon is imported
+
+QUICK = quick.take(["--clips", "walk", "--angles", "45", "--keyframes", "none", "--priors", "none"])
+
 import argparse
 import os
 import time

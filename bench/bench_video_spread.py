@@ -28,6 +28,10 @@ camera frame both describe.
 
 from __future__ import annotations
 
+import quick  # noqa: E402 - bench/quick.py: --quick, applied before pinrecon is imported
+
+QUICK = quick.take(["--seeds", "1"])
+
 import argparse
 import os
 import time

@@ -20,6 +20,10 @@ Run: ``OPENBLAS_NUM_THREADS=1 python bench/bench_workbench.py`` (about a minute;
 
 from __future__ import annotations
 
+import quick  # noqa: E402 - bench/quick.py: --quick, applied before pinrecon is imported
+
+QUICK = quick.take(["--frames", "60"])
+
 import argparse
 import os
 import time

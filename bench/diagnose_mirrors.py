@@ -16,6 +16,10 @@ the search's miss. The stage runs where the broader pose prior is in use (the da
 
 from __future__ import annotations
 
+import quick  # noqa: E402 - bench/quick.py: --quick, applied before pinrecon is imported
+
+QUICK = quick.take(["--clip", "walk"])
+
 import argparse
 import importlib
 import time
