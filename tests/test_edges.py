@@ -249,3 +249,32 @@ def test_links_report_says_when_its_fits_are_not_trustworthy(clip):
     noisy = links_report(project_tracks(fig, Q, cam, names, fps=30.0, noise_px=5.0, seed=3))
     assert "NOT TRUSTWORTHY" not in clean and "assume" in clean
     assert "NOT TRUSTWORTHY" in noisy
+
+
+def test_joint_angle_panels_are_named_anatomically(human):
+    """The names follow the human's joint axes at rest: Z along the hips' left-right line
+    (flexion), X front-back (abduction), Y vertical (rotation), measured here from the
+    figure's own keypoints."""
+    import pinocchio as pin
+
+    from pinrecon.viz.plots import joint_title
+
+    assert joint_title(human, "left_knee_Z") == "left knee flexion/extension"
+    assert joint_title(human, "right_hip_X") == "right hip abduction/adduction"
+    assert joint_title(human, "left_elbow_Y") == "left elbow pronation/supination"
+    assert joint_title(human, "middle_thoracic_Y") == "thoracic axial rotation"
+    assert joint_title(type("F", (), {"name": "cmu"})(), "left_knee_Z") == "left_knee_Z"  # other figures: as named
+    m, d = human.model, human.model.createData()
+    q = pin.neutral(m)
+    pin.forwardKinematics(m, d, q)
+    P = human.keypoints(q[None])[0]
+    k = human.keypoint_names.index
+    lateral = P[k("right_hip")] - P[k("left_hip")]
+    lateral /= np.linalg.norm(lateral)
+    for joint in ("left_knee_Z", "right_hip_Z", "left_hip_X", "left_elbow_Y", "right_shoulder_X"):
+        j = m.getJointId(joint)
+        short = m.joints[j].shortname()
+        a = np.asarray(m.joints[j].extract().axis).ravel() if "Unaligned" in short else np.eye(3)["XYZ".index(short[-1])]
+        w = d.oMi[j].rotation @ a
+        along = abs(float(w @ lateral))
+        assert (along > 0.99) == joint.endswith("_Z"), joint
