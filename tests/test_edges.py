@@ -278,3 +278,26 @@ def test_joint_angle_panels_are_named_anatomically(human):
         w = d.oMi[j].rotation @ a
         along = abs(float(w @ lateral))
         assert (along > 0.99) == joint.endswith("_Z"), joint
+
+
+def test_workbench_page_is_titled_pinrecon():
+    """The page's title is "pinrecon", not viser's "Viser": fetched over HTTP from a server
+    made as the workbench makes it."""
+    pytest.importorskip("viser")
+    import socket
+    import urllib.request
+
+    import viser
+
+    from pinrecon.workbench.app import page_title
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    with page_title("pinrecon"):
+        server = viser.ViserServer(host="127.0.0.1", port=port, verbose=False)
+    try:
+        html = urllib.request.urlopen(f"http://127.0.0.1:{port}/", timeout=30).read().decode("utf-8", "replace")
+    finally:
+        server.stop()
+    assert "<title>pinrecon</title>" in html and "<title>Viser</title>" not in html

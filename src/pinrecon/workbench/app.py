@@ -13,6 +13,8 @@ its own besides the current frame and the selections.
 
 from __future__ import annotations
 
+import contextlib
+import os
 import threading
 import time
 from pathlib import Path
@@ -34,6 +36,45 @@ def _viser():
         raise PinreconError('the workbench needs the \'edit\' extra: from a pinrecon checkout, '
                             'pip install ".[edit]"') from None
     return viser
+
+
+def titled_client(title: str) -> Path:
+    """A folder holding viser's web client (one ``index.html``) with the page titled
+    ``title`` instead of "Viser" (written once per viser version, in the temp folder)."""
+    import tempfile
+
+    import viser
+
+    src = Path(viser.__file__).resolve().parent / "client" / "build" / "index.html"
+    root = Path(tempfile.gettempdir()) / f"pinrecon-viser-{getattr(viser, '__version__', 'x')}-{title}"
+    page = root / "index.html"
+    if not page.is_file():
+        root.mkdir(parents=True, exist_ok=True)
+        tmp = root / f"index.{os.getpid()}.tmp"
+        tmp.write_text(src.read_text(encoding="utf-8").replace("<title>Viser</title>", f"<title>{title}</title>", 1),
+                       encoding="utf-8")
+        os.replace(tmp, page)
+    return root
+
+
+@contextlib.contextmanager
+def page_title(title: str):
+    """While open, a ``viser.ViserServer`` created serves its page titled ``title``: its web
+    server is given :func:`titled_client`'s folder in place of viser's own build folder."""
+    from viser import infra
+
+    made = infra.WebsockServer
+    root = titled_client(title)
+
+    def server(*args, **kwargs):
+        kwargs["http_server_root"] = root
+        return made(*args, **kwargs)
+
+    infra.WebsockServer = server
+    try:
+        yield root
+    finally:
+        infra.WebsockServer = made
 
 
 def view_half_px(uv_px: np.ndarray) -> float:
@@ -75,7 +116,8 @@ class Workbench:
         self.solving = False
         self.last_solve = ""
         self.message = ""
-        self.server = viser.ViserServer(host=host, port=port, label="pinrecon workbench", verbose=False)
+        with page_title("pinrecon"):
+            self.server = viser.ViserServer(host=host, port=port, label="pinrecon workbench", verbose=False)
         self._setup_static()
         self._setup_gui(segment)
         self.show(self.frame)
