@@ -301,3 +301,12 @@ def test_workbench_page_is_titled_pinrecon():
     finally:
         server.stop()
     assert "<title>pinrecon</title>" in html and "<title>Viser</title>" not in html
+
+
+def test_tracks_help_names_every_detector_format():
+    from pinrecon.cli import build_parser
+
+    sub = next(a for a in build_parser()._actions if a.dest == "command")
+    text = sub.choices["reconstruct"].format_help()
+    for fmt in ("OpenPose", "COCO", "AlphaPose", "MMPose", "RTMPose", "Halpe"):
+        assert fmt in text, fmt
