@@ -122,8 +122,15 @@ def test_every_readme_block_has_a_known_kind():
         assert b["kind"].split()[0] in ("fast", "slow", "expected-to-land", "no-run"), b
 
 
+@pytest.fixture(scope="module")
+def workdir(tmp_path_factory):
+    """One folder for every block, in the README's order, as a user working through it."""
+    return tmp_path_factory.mktemp("readme")
+
+
 @pytest.mark.parametrize("block", BLOCKS, ids=[f"line{b['line']}-{b['kind'].split()[0]}" for b in BLOCKS])
-def test_readme_block_runs_as_written(block, tmp_path):
+def test_readme_block_runs_as_written(block, workdir):
+    tmp_path = workdir
     kind = block["kind"].split()
     if kind[0] == "no-run":
         pytest.skip(f"README line {block['line']}: not run: {' '.join(kind[1:])}")
