@@ -175,6 +175,7 @@ def _pa(res, tracks, P):
     return pa_mpjpe_mm(res.keypoints3d[:, res.figure.keypoint_index(list(tracks.names))], P)
 
 
+@pytest.mark.slow
 def test_auto_camera_against_the_true_camera(coco_walk):
     """Without keyframes (measured: PA-MPJPE 38.2 against 39.7 mm, 56.7 before the perspective auto camera
     measured the limb lengths from the tracks; 76.1 against 75.8 mm before the pose prior; focal 1105 px from the
@@ -212,6 +213,7 @@ def _angle_deg(A, B):
     return float(np.degrees(np.arccos(np.clip((np.trace(np.asarray(A) @ np.asarray(B).T) - 1.0) / 2.0, -1.0, 1.0))))
 
 
+@pytest.mark.slow
 def test_the_tracks_refine_where_two_keyframes_put_the_auto_camera(coco_walk):
     """First and last keyframes only (frames 0 and 105 of the 2 s walk, 5 cm noise): alone
     they place the auto camera 0.61 m and 3.6 degrees from the camera that made the tracks.

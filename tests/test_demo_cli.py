@@ -25,6 +25,7 @@ def demo_dir(tmp_path_factory):
     return out
 
 
+@pytest.mark.slow  # the demo: about a minute
 def test_demo_writes_every_file(demo_dir):
     for name in (
         "tracks.json", "camera.json", "keyframes.json", "result.npz", "joint_angles.csv", "motion.bvh",
@@ -34,6 +35,7 @@ def test_demo_writes_every_file(demo_dir):
     assert not list(demo_dir.glob("*.tmp*"))
 
 
+@pytest.mark.slow  # the demo: about a minute
 def test_demo_pictures_open(demo_dir):
     import matplotlib.image as mpimg
     from PIL import Image
@@ -46,6 +48,7 @@ def test_demo_pictures_open(demo_dir):
         assert gif.n_frames > 20
 
 
+@pytest.mark.slow  # the demo: about a minute
 def test_demo_result_is_accurate_and_bvh_reads_back(demo_dir):
     res = pr.load_result(demo_dir / "result.npz")
     data = load_result_npz(demo_dir / "result.npz")
@@ -66,6 +69,7 @@ def test_demo_result_is_accurate_and_bvh_reads_back(demo_dir):
     assert err < 0.02
 
 
+@pytest.mark.slow  # the demo: about a minute
 def test_demo_csv_columns_and_rows(demo_dir):
     res = pr.load_result(demo_dir / "result.npz")
     with open(demo_dir / "joint_angles.csv") as fh:
@@ -79,6 +83,7 @@ def test_demo_csv_columns_and_rows(demo_dir):
     np.testing.assert_allclose(table[:, 7:], np.degrees(values), atol=1e-6)
 
 
+@pytest.mark.slow  # the demo: about a minute
 def test_reconstruct_command_repeats_the_demo_from_its_files(demo_dir, tmp_path):
     from pinrecon._resources import bundled_clip
 
@@ -98,6 +103,7 @@ def test_reconstruct_command_repeats_the_demo_from_its_files(demo_dir, tmp_path)
     assert np.linalg.norm(a - b, axis=-1).mean() < 0.005
 
 
+@pytest.mark.slow  # the demo: about a minute
 def test_export_and_plot_commands(demo_dir, tmp_path, capsys):
     assert main(["export", str(demo_dir / "result.npz"), "--bvh", str(tmp_path / "m.bvh"), "--csv", str(tmp_path / "m.csv")]) == 0
     assert (tmp_path / "m.bvh").is_file() and (tmp_path / "m.csv").is_file()
@@ -107,6 +113,7 @@ def test_export_and_plot_commands(demo_dir, tmp_path, capsys):
     assert (tmp_path / "p" / "reprojection.png").is_file()
 
 
+@pytest.mark.slow  # the demo: about a minute
 def test_links_command_names_the_knees(demo_dir, capsys):
     assert main(["links", str(demo_dir / "tracks.json"), "--camera", str(demo_dir / "camera.json"),
                  "--names", "LeftUpLeg", "LeftLeg", "LeftFoot"]) == 0
@@ -156,6 +163,7 @@ def test_pose_prior_flags_reach_the_weights_of_reconstruct_and_edit(monkeypatch)
     assert p.parse_args(["edit", *base, "--floor", "none"]).floor == "none"
 
 
+@pytest.mark.slow  # the demo: about a minute
 def test_stability_flags_reach_the_check_and_the_result(demo_dir, tmp_path, monkeypatch):
     """``reconstruct --stability N --jobs J``: the check runs N copies in J processes, and what
     it measured is in the saved result. (The check itself: tests/test_stability.py.)"""
@@ -182,6 +190,7 @@ def test_stability_flags_reach_the_check_and_the_result(demo_dir, tmp_path, monk
     assert "stability: solved again on 3 copies" in back.summary()
 
 
+@pytest.mark.slow  # the demo: about a minute
 def test_demo_your_video_says_the_data_fix_none_of_its_lengths(demo_dir):
     """One camera, no keyframe: the table's "lengths the data fix" row reads the result's
     identifiability report, which flags all 9 fitted groups and the size (the one-view

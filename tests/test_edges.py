@@ -310,3 +310,15 @@ def test_tracks_help_names_every_detector_format():
     text = sub.choices["reconstruct"].format_help()
     for fmt in ("OpenPose", "COCO", "AlphaPose", "MMPose", "RTMPose", "Halpe"):
         assert fmt in text, fmt
+
+
+def test_demo_bvh_is_in_metres(tmp_path):
+    """The demo's BVH is in metres like every export (it was in CMU units, 26 units tall)."""
+    from pinrecon.demo import run_demo
+    from pinrecon.io.bvh import load_bvh
+
+    run_demo(tmp_path, frames=30, pictures=False, video=False)
+    back = load_bvh(tmp_path / "motion.bvh", 1.0)
+    P = back.figure.keypoints(back.q)
+    height_m = float(np.max(np.ptp(P[0], axis=0)))
+    assert 1.4 < height_m < 2.1  # a person, in metres
