@@ -45,7 +45,8 @@ from __future__ import annotations
 
 import quick  # noqa: E402 - bench/quick.py: --quick, applied before pinrecon is imported
 
-QUICK = quick.take(["--frames", "100", "--scipy-frames", "50", "--memory-sizes", "100", "--skip-dance", "--calibration-pairs", "2"], cut=False)
+QUICK = quick.take(["--frames", "100", "--scipy-frames", "50", "--memory-sizes", "100", "--skip-dance", "--calibration-pairs", "2",
+                     "--long-sizes", "500"], cut=False)
 
 import argparse
 import json
