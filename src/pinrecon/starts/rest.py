@@ -160,7 +160,8 @@ def rest_start(problem: ReconstructionProblem) -> np.ndarray:
         P = figure.keypoints(q_rest)[meas.keypoints]
         span_model = np.ptp(P, axis=0).max()
         xy = camera.normalized(meas.uv_px[meas.observed.any(1)])
-        span = np.nanmax(np.ptp(xy, axis=1)) if xy.size else 0.0
+        ext = np.ptp(xy, axis=1) if xy.size else np.zeros(0)  # NaN in frames with a point missing
+        span = np.nanmax(ext) if np.isfinite(ext).any() else np.nan  # no All-NaN warning when none is whole
         z = span_model / span if np.isfinite(span) and span > 1e-9 else 1.0
         centre_cam = np.array([0.0, 0.0, z])
         Q[:, :3] = (camera.R.T @ (centre_cam - camera.t))[None, :] - (P.mean(0) - q_rest[:3])
