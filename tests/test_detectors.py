@@ -400,7 +400,7 @@ def test_reconstruct_human_uses_the_body25_points(tmp_path, camera_json, capsys)
     for n in ["neck", "mid_hip", "left_heel", "right_heel", "left_big_toe", "right_small_toe"]:
         assert n in res.figure.keypoint_names
     err = capsys.readouterr().err
-    assert "iteration" not in err and "pinrecon: start" not in err  # --quiet: no progress
+    assert "iter " not in err and "pinrecon: stage" not in err  # --quiet: no progress
 
 
 def test_warnings_are_printed_also_with_quiet(capsys):

@@ -29,7 +29,7 @@ def test_the_reference_lists_every_name_of_pinrecon_all():
 
 
 def test_the_reference_covers_every_public_module():
-    shown = _directives()
+    shown = _directives() - {"pinrecon"}  # the package page lists pinrecon.__all__, not its modules
     public = [m.name for m in pkgutil.walk_packages(pinrecon.__path__, "pinrecon.")
               if not any(part.startswith("_") for part in m.name.split("."))]
     # a package's entry shows its modules (show_submodules in mkdocs.yml)

@@ -224,4 +224,4 @@ def test_missing_extra_names_it(cut, tmp_path, capsys, monkeypatch):
     err = capsys.readouterr().err
     assert 'pip install "pinrecon[video]"' in err and "Traceback" not in err
     assert main(["video", str(cut), "--out", str(tmp_path / "o")]) == 2  # before any work
-    assert 'pip install "pinrecon[video]"' in capsys.readouterr().err and not (tmp_path / "o").exists()
+    assert 'pip install ".[video]"' in capsys.readouterr().err and not (tmp_path / "o").exists()

@@ -1,6 +1,6 @@
 """Video in: frames through OpenCV, MediaPipe Pose per frame, :class:`~pinrecon.Tracks` out.
 
-The optional ``video`` extra (``pip install "pinrecon[video]"``: MediaPipe 0.10.14, OpenCV,
+The optional ``video`` extra (``pip install ".[video]"`` from a checkout: MediaPipe 0.10.14, OpenCV,
 tqdm)::
 
     from pinrecon.video import track_video

@@ -1,6 +1,6 @@
 """Video files through OpenCV: what a video is (size, rate, length) and its frames, one by one.
 
-OpenCV (``cv2``) is the optional ``video`` extra's (``pip install "pinrecon[video]"``);
+OpenCV (``cv2``) is the optional ``video`` extra's (``pip install ".[video]"`` from a checkout);
 without it :func:`require_cv2` raises :class:`MissingVideoExtraError`, one line naming the
 extra. A file OpenCV cannot decode, or one without frames, is one
 :class:`~pinrecon.errors.InputError` naming the file.
@@ -19,7 +19,7 @@ from ..errors import InputError, PinreconError
 
 __all__ = ["EXTRA_HINT", "MissingVideoExtraError", "VideoInfo", "iter_frames", "require_cv2", "video_info"]
 
-EXTRA_HINT = 'pip install "pinrecon[video]"'
+EXTRA_HINT = 'from a pinrecon checkout, pip install ".[video]"'
 
 
 class MissingVideoExtraError(PinreconError, ImportError):
