@@ -101,9 +101,7 @@ def run_video(args, tracked=None) -> dict:
     if auto and args.image_size is None:
         args.image_size = [float(infos[0].width), float(infos[0].height)]
     args.fps = None
-    with warnings.catch_warnings():
-        if args.quiet:
-            warnings.simplefilter("ignore")
+    with warnings.catch_warnings():  # warnings are said also with --quiet (it silences progress only)
         # MediaPipe's hand points are on no figure: said in docs/video.md, not on every run
         warnings.filterwarnings("ignore", message=r"tracks points not on the figure are ignored: \['left_pinky', "
                                 r"'right_pinky', 'left_index', 'right_index', 'left_thumb', 'right_thumb'\]$")
@@ -144,14 +142,12 @@ def run_video(args, tracked=None) -> dict:
 
 def cmd_video(args) -> int:
     run = run_video(args)
-    if not args.quiet:
-        print(run["result"].summary(), file=sys.stderr)
-        n, s = run["frames"], run["seconds"]
-        where = ", ".join(f"{k} {v:.1f} s" for k, v in run["stages"].items())
-        print(f"pinrecon video: {n} frames in {s:.1f} s end to end ({n / max(s, 1e-9):.1f} frames/s: {where})",
-              file=sys.stderr)
-        for f in run["files"]:
-            print(f"wrote {f}", file=sys.stderr)
+    print(run["result"].summary())  # the command's output, on stdout (also with --quiet: no progress only)
+    n, s = run["frames"], run["seconds"]
+    where = ", ".join(f"{k} {v:.1f} s" for k, v in run["stages"].items())
+    print(f"pinrecon video: {n} frames in {s:.1f} s end to end ({n / max(s, 1e-9):.1f} frames/s: {where})")
+    for f in run["files"]:
+        print(f"wrote {f}")
     return 0
 
 
@@ -180,5 +176,6 @@ def register(sub) -> None:
                    help="height of the overlay video in pixels (the input scaled down to it; default 960)")
     p.add_argument("--no-overlay", action="store_true", help="skip the overlay video")
     p.add_argument("--no-plots", action="store_true", help="skip the plots")
-    p.add_argument("--quiet", action="store_true", help="no progress output")
+    p.add_argument("--quiet", action="store_true", help="no progress output (the summary and warnings are still "
+                   "shown)")
     p.set_defaults(func=cmd_video)
