@@ -29,6 +29,10 @@ MediaPipe's detections are cached per video under the user cache
 
 from __future__ import annotations
 
+import quick  # noqa: E402 - bench/quick.py: --quick, applied before pinrecon is imported
+
+QUICK = quick.take(["--cams", "1"], cut=False)
+
 import argparse
 import os
 import tempfile

@@ -222,6 +222,6 @@ def test_missing_extra_names_it(cut, tmp_path, capsys, monkeypatch):
     monkeypatch.setitem(sys.modules, "mediapipe", None)  # import mediapipe now raises ImportError
     assert main(["track", str(cut), "--out", str(tmp_path / "t.json")]) == 2
     err = capsys.readouterr().err
-    assert 'pip install "pinrecon[video]"' in err and "Traceback" not in err
+    assert 'pip install ".[video]"' in err and "Traceback" not in err
     assert main(["video", str(cut), "--out", str(tmp_path / "o")]) == 2  # before any work
     assert 'pip install ".[video]"' in capsys.readouterr().err and not (tmp_path / "o").exists()
