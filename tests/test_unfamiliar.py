@@ -77,7 +77,7 @@ def test_unfamiliar_spans_by_construction():
                  extras=rep.to_extras())
     text = res.summary()
     assert "poses unlike the pose prior's clips in 8 of 40 frames (20 %" in text
-    assert "frames 10-19 (0.33-0.63 s), distance up to 15.0" in text
+    assert "frames 10-19 (0.33-0.63 s), up to 15.0 standard deviations" in text
 
 
 def _leg(P, names):
