@@ -24,6 +24,10 @@ manifest. Every clip is solved the quick way (``--seed rest --floor none --max-i
 
 from __future__ import annotations
 
+import quick  # noqa: E402 - bench/quick.py: --quick, applied before pinrecon is imported
+
+QUICK = quick.take(["--clips", "4", "--kill-after", "2"], cut=False)
+
 import argparse
 import csv
 import json
