@@ -35,6 +35,10 @@ on the CMU cases: today's default path, and, where the lifted-pose rows exist, t
 
 from __future__ import annotations
 
+import quick  # noqa: E402 - bench/quick.py: --quick, applied before pinrecon is imported
+
+QUICK = quick.take(["--angles", "45", "--no-pose2sim"], cut=False)
+
 import argparse
 import os
 import time
