@@ -39,6 +39,7 @@ from .rows import (
     smoothing_sigmas,
 )
 from .rows.bones import skeleton_rows
+from .rows.lifted import lifted_rows
 from .rows.posture import posture_row, rest_pose
 from .tracks import Keyframe, Keyframes, Markers, Tracks
 from .weights import Weights
@@ -603,7 +604,7 @@ def make_problem(
 
     smoothing, limits = prior_rows(figure, T, fps, weights)
     active = observable_mask(figure, used, keyframes)
-    rows = [v.measurement for v in views] + [limits, smoothing]
+    rows = [v.measurement for v in views] + [limits, smoothing] + lifted_rows(figure, views, weights)
     rows += [r for r in [posture_row(figure, T, weights, active), *skeleton_rows(figure, T, active)] if r is not None]
     if keyframes is not None and len(keyframes):
         rows += keyframe_rows(figure, keyframes, factors[0])

@@ -13,7 +13,7 @@ from .rows.posture import PosePrior
 
 __all__ = ["Weights"]
 
-_CHOICES = {"loss": ("auto", "l2", "huber", "cauchy"), "pose_prior_loss": PosePrior.LOSSES, "root_group": ("R3xSO3", "SE3")}
+_CHOICES = {"loss": ("auto", "l2", "huber", "cauchy"), "lifted_loss": ("l2", "huber", "cauchy"), "pose_prior_loss": PosePrior.LOSSES, "root_group": ("R3xSO3", "SE3")}
 
 
 @dataclass(frozen=True)
@@ -60,6 +60,14 @@ class Weights:
     sigma_proportions : log-normal prior on the figure's segment scale factors when they
         are calibrated (``calibrate="lengths"``): standard deviation of the log factor
         around its start (0.1: about 10 %).
+    lifted : weight of the lifted-pose rows (:mod:`pinrecon.rows.lifted`), used whenever the
+        tracks carry a lifter's 3D (``Tracks.lifted``): the inverse variance of a bone's chord
+        ``|d - R l|`` between the figure's unit bone direction and the lifter's (25: a standard
+        deviation of 0.2, about 11 degrees), times the lifter's confidence; ``0`` or ``None``
+        turns them off. Measured in ``bench/bench_lifted.py``.
+    lifted_loss, lifted_loss_scale : their robust loss (``"cauchy"``, ``"huber"``, ``"l2"``)
+        on the chord, and its scale in chord units (0.5: about 29 degrees), so a bone the
+        lifter got wrong is outvoted by the image and the other rows.
     root_group : group on which the root's constant-velocity prior is written,
         ``"R3xSO3"`` (world translation and orientation apart; default) or ``"SE3"``
         (the free flyer's screw motion), see :mod:`pinrecon.rows.smoothing`.
@@ -81,6 +89,9 @@ class Weights:
     pose_prior_k: float | None = 2.0
     root_group: str = "R3xSO3"
     sigma_proportions: float = 0.1
+    lifted: float | None = 25.0
+    lifted_loss: str = "cauchy"
+    lifted_loss_scale: float = 0.5
 
     def __post_init__(self):
         for f in fields(self):
@@ -91,5 +102,7 @@ class Weights:
             elif f.name == "pose_prior_model":
                 if not (isinstance(v, str) and v):
                     raise InputError(f"must be 'auto', 'none', a prior's name or file, got {v!r}", field="weights.pose_prior_model")
+            elif f.name == "lifted" and v is not None and isinstance(v, (int, float)) and v == 0:
+                continue
             elif v is not None and not (isinstance(v, (int, float)) and np.isfinite(v) and v > 0):
                 raise InputError(f"must be a positive number, got {v!r}", field=f"weights.{f.name}")

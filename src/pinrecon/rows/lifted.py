@@ -1,0 +1,280 @@
+"""Lifted-pose rows: a learned per-frame 3D estimate of the figure (a lifter's output,
+:class:`pinrecon.lifted.Lifted`) as a robust prior on the directions of its bones.
+
+A *bone* is a pair of keypoints ``(a, b)`` along the skeleton (shoulder-elbow,
+elbow-wrist, hip-knee, knee-ankle, the shoulders, the hips, each side's shoulder-hip, ...:
+:func:`lifted_bones`). In frame ``t`` the figure's bone direction in world axes is
+
+    d = (p_b - p_a) / |p_b - p_a|,
+
+the lifter's is ``l = (L_b - L_a) / |L_b - L_a|`` in its own axes, and the row is
+
+    e = d - R_world_lifter l            (3 entries; |e| = 2 sin(angle / 2), the chord)
+
+whitened by ``sqrt(w c_ab)``, ``w`` the row kind's weight (``Weights.lifted``: the inverse
+variance of a bone's chord; 25 is a standard deviation of 0.2, about 11 degrees) and
+``c_ab = min(c_a, c_b)`` the lifter's confidences. Unit directions make the rows free of
+the lifter's size and translation (a lifter's metres are seldom the figure's); a robust
+loss on ``|e|`` (Cauchy or Huber, scale ``loss_scale`` in chord units, the same for every
+weight) lets the image and the other rows outvote a bone the lifter got wrong (a limb
+mirrored in depth: ``|e| = 2 sin(elevation)``). The loss is applied as iteratively
+reweighted rows, ``r = sqrt(w c rho'(|e|^2)) e``, as :class:`~.measurement.Measurement2D`
+does, so ``J^T r`` is the exact gradient of ``0.5 w c rho(|e|^2)``.
+
+**The lifter's axes.** ``Lifted.frame == "camera"``: the lifter's axes are the camera's
+(OpenCV: x right, y down, z forward), so ``R_world_lifter = R_cam_world^T`` of the view's
+camera, known. ``"unknown"``: one rotation for the whole clip, estimated. It is *profiled
+out*: at every evaluation ``R`` is the weighted Procrustes (Wahba) rotation that minimises
+the rows' cost at the current poses, ``R = U diag(1, 1, det(U V^T)) V^T`` with ``U S V^T =
+sum_tb omega d l^T`` (``omega = w c rho'`` re-solved a few times for the robust loss), so
+the rows are a function of the poses alone. Why this and not a global unknown of the
+Schur complement: the rotation has a closed form given the poses, and profiling it keeps
+every solve of the pipeline (starts, stages, windows, solves without globals) consistent
+without adding a global to the problem; the gradient is exact (the envelope theorem: the
+cost is stationary in ``R`` at its optimum), and the Gauss-Newton matrix drops only
+``dR/dq_t``, a coupling of order ``1/T`` per frame through the one rotation shared by all
+frames (Kaufman's variable-projection approximation). The solver's step test reads the
+profiled cost, so an accepted step lowers it. Rotation, not reflection: the lifter's
+handedness is kept, which is what tells a limb from its mirror image.
+
+The derivative (``docs/derivations.md``, lifted-pose rows): ``dd/dv = (I - d d^T) / |p_b -
+p_a| (J_b - J_a)`` with ``J_k`` the keypoint Jacobian; with the figure's proportions as
+global unknowns the same projection of ``dp_b/dg - dp_a/dg``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .base import RowBlock, RowKind, State, supported_columns
+
+__all__ = ["LiftedPose", "EXTRA_BONES", "lifted_bones", "lifted_rows", "procrustes_rotation",
+           "disagreement_extras", "disagreement_spans", "DISAGREEMENT_DEG"]
+
+#: bones across the skeleton's tree (the tree's own bones come from the keypoint map's parents)
+EXTRA_BONES = (
+    ("left_shoulder", "right_shoulder"), ("left_hip", "right_hip"), ("left_shoulder", "left_hip"),
+    ("right_shoulder", "right_hip"), ("left_ear", "right_ear"), ("left_shoulder", "right_hip"),
+    ("right_shoulder", "left_hip"), ("neck", "nose"), ("left_ankle", "left_heel"), ("right_ankle", "right_heel"),
+    ("left_ankle", "left_big_toe"), ("right_ankle", "right_big_toe"),
+)
+
+#: a bone whose solved direction is further than this from the lifter's (degrees) disagrees
+DISAGREEMENT_DEG = 45.0
+
+
+def lifted_bones(figure, names) -> list[tuple[str, str]]:
+    """The bones ``(a, b)`` among ``names`` (keypoints the figure and the lifter share): each
+    keypoint with its parent keypoint in the figure's map (elbow-shoulder, wrist-elbow, ...),
+    then :data:`EXTRA_BONES`; a pair of coincident keypoints is left out."""
+    have = [n for n in names if n in figure.keypoint_names]
+    out = []
+    parents = figure.parents_of_keypoints
+    for n in have:
+        p = parents[figure.keypoint_names.index(n)]
+        if p is not None and figure.keypoint_names[p] in have:
+            out.append((figure.keypoint_names[p], n))
+    seen = {frozenset(b) for b in out}
+    out += [(a, b) for a, b in EXTRA_BONES if a in have and b in have and frozenset((a, b)) not in seen]
+    P = figure.keypoints(figure.neutral()[None])[0]
+    return [(a, b) for a, b in out
+            if np.linalg.norm(P[figure.keypoint_names.index(a)] - P[figure.keypoint_names.index(b)]) > 1e-6]
+
+
+def procrustes_rotation(D: np.ndarray, L: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """The rotation ``R`` (3, 3) minimising ``sum w |D - R L|^2`` over paired unit vectors
+    ``D``, ``L`` (..., 3) with weights ``w`` (...) (Wahba's problem, by SVD)."""
+    M = np.einsum("n,ni,nj->ij", np.ravel(w), np.reshape(D, (-1, 3)), np.reshape(L, (-1, 3)))
+    U, _, Vt = np.linalg.svd(M)
+    S = np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt)) or 1.0])
+    return U @ S @ Vt
+
+
+class LiftedPose(RowKind):
+    """Rows pulling the figure's bone directions to a lifter's, frame by frame.
+
+    Parameters
+    ----------
+    frames : (N,) reconstruction frames with a lifted pose.
+    bones : (B, 2) figure keypoint indices ``(a, b)`` of each bone.
+    directions : (N, B, 3) the lifter's unit bone directions in its own axes, NaN where missing.
+    confidence : (N, B) per bone (0 where missing).
+    R_world_lifter : (3, 3) the lifter's axes in world axes (``"camera"`` frame:
+        ``camera.R.T``), or ``None``: estimated from the poses at every evaluation
+        (the module docstring).
+    weight : inverse variance of a bone's chord ``|d - R l|`` (``Weights.lifted``).
+    loss : ``"cauchy"``, ``"huber"`` or ``"l2"``; ``loss_scale`` its scale in chord units.
+    irls : Procrustes re-solves with the robust weights (an estimated rotation only).
+    names : (B,) labels of the bones (``"left_elbow-left_wrist"``), for reports.
+    """
+
+    name = "lifted"
+
+    def __init__(self, frames, bones, directions, confidence, R_world_lifter=None, weight=25.0, loss="cauchy",
+                 loss_scale=0.5, irls=3, names=None):
+        self.frames = np.asarray(frames, dtype=int)
+        self.kinematic_frames = self.frames
+        self.bones = np.asarray(bones, dtype=int).reshape(-1, 2)
+        L = np.asarray(directions, float)
+        c = np.asarray(confidence, float)
+        ok = np.all(np.isfinite(L), axis=-1) & (c > 0)
+        self.observed = ok
+        self.L = np.where(ok[..., None], L, 0.0)
+        self.w = np.where(ok, c, 0.0) * float(weight)
+        self.R_fixed = None if R_world_lifter is None else np.asarray(R_world_lifter, float)
+        if loss not in ("l2", "huber", "cauchy"):
+            raise ValueError(f"loss must be 'l2', 'huber' or 'cauchy', got {loss!r}")
+        self.loss, self.loss_scale, self.irls = loss, float(loss_scale), int(irls)
+        self.names = list(names) if names is not None else [f"{a}-{b}" for a, b in self.bones]
+        self.keypoints = np.unique(self.bones)
+
+    # -- pieces ---------------------------------------------------------------------------
+    def _robust(self, s):
+        """``(rho(s), rho'(s))`` of the squared chord ``s`` (``rho(s) = s`` for l2)."""
+        c2 = self.loss_scale**2
+        if self.loss == "l2":
+            return s, np.ones_like(s)
+        if self.loss == "huber":
+            e = np.sqrt(s)
+            inside = e <= self.loss_scale
+            return (np.where(inside, s, 2.0 * self.loss_scale * e - c2),
+                    np.where(inside, 1.0, self.loss_scale / np.maximum(e, 1e-300)))
+        return c2 * np.log1p(s / c2), 1.0 / (1.0 + s / c2)
+
+    def directions(self, state: State):
+        """``(d, length)``: the figure's unit bone directions (N, B, 3) in world axes and the
+        bones' lengths (N, B) at the state."""
+        P = state.points[state.slot[self.frames]]
+        v = P[:, self.bones[:, 1]] - P[:, self.bones[:, 0]]
+        n = np.maximum(np.linalg.norm(v, axis=-1), 1e-12)
+        return v / n[..., None], n
+
+    def rotation(self, state: State, d=None) -> np.ndarray:
+        """``R_world_lifter`` at the state: the fixed one, or the profiled Procrustes one."""
+        if self.R_fixed is not None:
+            return self.R_fixed
+        if d is None:
+            d = self.directions(state)[0]
+        R = procrustes_rotation(d, self.L, self.w)
+        for _ in range(self.irls if self.loss != "l2" else 0):
+            s = np.sum((d - self.L @ R.T) ** 2, axis=-1)
+            R, R_old = procrustes_rotation(d, self.L, self.w * self._robust(s)[1]), R
+            if np.abs(R - R_old).max() < 1e-13:
+                break
+        return R
+
+    def angles_deg(self, state: State) -> np.ndarray:
+        """(N, B) angle between the figure's bone and the lifter's (degrees), NaN where missing."""
+        d, _ = self.directions(state)
+        e = np.linalg.norm(d - self.L @ self.rotation(state, d).T, axis=-1)
+        return np.where(self.observed, np.degrees(2.0 * np.arcsin(np.clip(e / 2.0, 0.0, 1.0))), np.nan)
+
+    # -- rows -----------------------------------------------------------------------------
+    def evaluate(self, state: State, jacobian: bool = True, R=None) -> RowBlock:
+        d, length = self.directions(state)
+        R = self.rotation(state, d) if R is None else R
+        e = d - self.L @ R.T  # (N, B, 3)
+        s = np.sum(e * e, axis=-1)
+        rho, drho = self._robust(s)
+        scale = np.sqrt(self.w * drho)  # (N, B)
+        N, B = e.shape[:2]
+        r = (e * scale[..., None]).reshape(N, 3 * B)
+        cost = 0.5 * float(np.sum(self.w * rho))
+        J = Jg = gcols = None
+        cols = np.arange(state.figure.nv)
+        if jacobian:
+            slots = state.slot[self.frames]
+            A = (np.eye(3) - d[..., :, None] * d[..., None, :]) / length[..., None, None]
+            A = A * scale[..., None, None]  # (N, B, 3, 3)
+            kps = np.r_[self.bones[:, 1], self.bones[:, 0]]
+            AA = np.concatenate([A, -A], axis=1)
+            cols = supported_columns(state.figure, self.keypoints)
+            Jp = state.point_jacobians(slots, kps, AA, None, cols)  # (N, 2B, 3, c)
+            J = (Jp[:, :B] + Jp[:, B:]).reshape(N, 1, 3 * B, -1)
+            if state.has_global_points:
+                Gp = state.global_point_jacobians(slots, kps, AA)
+                Jg, gcols = (Gp[:, :B] + Gp[:, B:]).reshape(N, 3 * B, -1), state.proportion_cols
+        return RowBlock(self.frames[:, None], r, J, cols, self.name, cost_value=cost, Jg=Jg, gcols=gcols)
+
+
+def lifted_rows(figure, views, weights) -> list[LiftedPose]:
+    """One :class:`LiftedPose` per view whose tracks carry a lifted pose (``view.tracks.
+    lifted``, names already the figure's), on the reconstruction grid (tracks frame ``i`` is
+    frame ``i * view.factor``); none when ``weights.lifted`` is 0 or ``None``. ``"camera"``
+    lifters are read in the view's camera axes, ``"unknown"`` ones get their rotation
+    estimated."""
+    w = getattr(weights, "lifted", None)
+    if not w:
+        return []
+    out = []
+    for v in views:
+        lifted = getattr(v.tracks, "lifted", None)
+        if lifted is None:
+            continue
+        pairs = lifted_bones(figure, [n for n in lifted.names if np.any(lifted.confidence[:, lifted.names.index(n)] > 0)])
+        if not pairs:
+            continue
+        ia = [lifted.names.index(a) for a, _ in pairs]
+        ib = [lifted.names.index(b) for _, b in pairs]
+        vec = lifted.points[:, ib] - lifted.points[:, ia]
+        n = np.linalg.norm(vec, axis=-1)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            L = np.where((n > 1e-9)[..., None], vec / n[..., None], np.nan)
+        conf = np.minimum(lifted.confidence[:, ia], lifted.confidence[:, ib])
+        rows = np.flatnonzero((np.isfinite(L).all(-1) & (conf > 0)).any(axis=1))
+        if not len(rows):
+            continue
+        R = np.asarray(v.camera.R, float).T if lifted.frame == "camera" else None
+        bones = np.array([[figure.keypoint_names.index(a), figure.keypoint_names.index(b)] for a, b in pairs])
+        out.append(LiftedPose(rows * v.factor, bones, L[rows], conf[rows], R, weight=w, loss=weights.lifted_loss,
+                              loss_scale=weights.lifted_loss_scale, names=[f"{a}-{b}" for a, b in pairs]))
+    return out
+
+
+def disagreement_extras(rows, state: State, n_frames: int, threshold_deg: float = DISAGREEMENT_DEG) -> dict:
+    """What the lifted rows say of a solution, as result extras (empty without them):
+    ``lifted_disagreement_deg`` (T, B) the angle between each solved bone and the lifter's
+    (the largest over views; NaN without a lifted pose), ``lifted_frame_deg`` (T,) its
+    per-frame median over the bones, ``lifted_bones`` (B,) their labels,
+    ``lifted_rotation`` (V, 3, 3) each view's ``R_world_lifter``, ``lifted_spans`` (S, 4)
+    (bone, first frame, frame after the last, largest angle) of the runs over
+    ``lifted_threshold_deg``."""
+    rows = [r for r in rows if isinstance(r, LiftedPose)]
+    if not rows:
+        return {}
+    names = []
+    for r in rows:
+        names += [n for n in r.names if n not in names]
+    ang = np.full((n_frames, len(names)), np.nan)
+    for r in rows:
+        a = r.angles_deg(state)
+        idx = [names.index(n) for n in r.names]
+        cur = ang[np.ix_(r.frames, idx)]
+        ang[np.ix_(r.frames, idx)] = np.where(np.isnan(cur) | (a > cur), a, cur)
+    with np.errstate(all="ignore"):
+        import warnings
+
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            frame = np.nanmedian(ang, axis=1)
+    return {
+        "lifted_disagreement_deg": ang,
+        "lifted_frame_deg": frame,
+        "lifted_bones": np.array(names),
+        "lifted_rotation": np.stack([r.rotation(state) for r in rows]),
+        "lifted_threshold_deg": np.float64(threshold_deg),
+        "lifted_spans": disagreement_spans(ang, threshold_deg),
+    }
+
+
+def disagreement_spans(ang: np.ndarray, threshold_deg: float = DISAGREEMENT_DEG) -> np.ndarray:
+    """(S, 4) runs of frames where a bone's angle to the lifter's exceeds ``threshold_deg``:
+    (bone index, first frame, frame after the last, largest angle in degrees)."""
+    out = []
+    for b in range(ang.shape[1]):
+        over = np.flatnonzero(np.nan_to_num(ang[:, b], nan=0.0) > threshold_deg)
+        if not len(over):
+            continue
+        for run in np.split(over, np.flatnonzero(np.diff(over) > 1) + 1):
+            out.append((b, run[0], run[-1] + 1, float(np.nanmax(ang[run, b]))))
+    return np.array(out, float).reshape(-1, 4)
