@@ -37,6 +37,7 @@ from .problem import (
 )
 from .result import Result, load_result
 from .rows import Measurement2D
+from .rows.lifted import LiftedPose, disagreement_extras
 from .rows.posture import prior_for
 from .solver import SolveResult, SolverOptions, globals_of, solve
 from .stages import Run, StageReport, check_skip, run_stages
@@ -602,4 +603,7 @@ def _package(problem: ReconstructionProblem, res: SolveResult, auto: dict | None
         result.extras.update(report.to_extras())
     if unfamiliar is not None:
         result.extras.update(unfamiliar.to_extras())
+    lifted = [r for r in problem.rows if isinstance(r, LiftedPose)]
+    if lifted:  # where the lifter and the solution disagree, per frame and bone
+        result.extras.update(disagreement_extras(lifted, problem.state(Q, jacobian=False, g=g), T))
     return result

@@ -17,7 +17,7 @@ from .contact import FOOT_EXTRAS, FootContact, foot_metrics
 #: extras of the hypotheses start, the fault stage, the pose prior's check and :mod:`pinrecon.stability`,
 #: kept by :func:`load_result`
 FAULT_EXTRAS_PREFIXES = ("hypothesis_", "repaired_", "outlier_", "prior_", "solution_turns", "solution_mirrors",
-                         "mirror_chains", "mirror_uncertain", "stability_", "run_time_s")
+                         "mirror_chains", "mirror_uncertain", "stability_", "run_time_s", "lifted_")
 from .errors import InputError
 from .figure import Figure, parse_keypoint_entries
 from .io.fields import string_field
@@ -167,6 +167,7 @@ class Result:
         lines += self.feet_summary()
         lines += self.faults_summary()
         lines += stability_lines(self.extras, self.fps)
+        lines += lifted_lines(self.extras, self.fps)
         return "\n".join(lines)
 
     def stages_summary(self) -> list[str]:
@@ -569,6 +570,30 @@ def stability_lines(extras, fps: float, limit: int = 6) -> list[str]:
     for a, b, name, mm, k in sorted(spans, key=lambda r: -r[3])[:limit]:
         lines.append(f"  frames {a}-{b - 1} ({a / fps:.2f}-{(b - 1) / fps:.2f} s): {k} of {n} copies, most at {name} "
                      f"({mm:.0f} mm)")
+    if len(spans) > limit:
+        lines.append(f"  ... and {len(spans) - limit} more")
+    return lines
+
+
+def lifted_lines(extras, fps: float, limit: int = 6) -> list[str]:
+    """The summary's lines for the lifted-pose rows' extras (:func:`pinrecon.rows.lifted.
+    disagreement_extras`): how far the solved bones are from the lifter's, and the spans of
+    frames where a bone disagrees by more than the threshold (none without a lifted pose)."""
+    if "lifted_disagreement_deg" not in extras:
+        return []
+    ang = np.asarray(extras["lifted_disagreement_deg"], float)
+    names = [str(n) for n in np.asarray(extras["lifted_bones"], dtype=str)]
+    thr = float(extras["lifted_threshold_deg"])
+    spans = np.asarray(extras["lifted_spans"], float).reshape(-1, 4)
+    seen = np.isfinite(ang)
+    med = float(np.median(ang[seen])) if seen.any() else float("nan")
+    share = 100.0 * float((ang[seen] > thr).mean()) if seen.any() else 0.0
+    lines = [f"lifted pose: the solved bones are {med:.1f} degrees from the lifter's (median over {seen.any(1).sum()} "
+             f"frames and {len(names)} bones); {share:.1f} % of the bone-frames disagree by more than {thr:g} degrees "
+             "(the image and the other rows outvoted the lifter there)"]
+    for b, a, e, m in spans[np.argsort(-(spans[:, 2] - spans[:, 1]))][:limit]:
+        lines.append(f"  {names[int(b)]}: frames {int(a)}-{int(e) - 1} ({a / fps:.2f}-{(e - 1) / fps:.2f} s), "
+                     f"up to {m:.0f} degrees")
     if len(spans) > limit:
         lines.append(f"  ... and {len(spans) - limit} more")
     return lines

@@ -169,6 +169,18 @@ class LiftedPose(RowKind):
         e = np.linalg.norm(d - self.L @ self.rotation(state, d).T, axis=-1)
         return np.where(self.observed, np.degrees(2.0 * np.arcsin(np.clip(e / 2.0, 0.0, 1.0))), np.nan)
 
+    def bone_costs(self, P, frames, R) -> np.ndarray:
+        """(F, B) each bone's cost ``0.5 w c rho(|e|^2)`` for keypoints ``P`` (F, K, 3) at the
+        reconstruction frames ``frames`` (F,), the rotation ``R`` held (0 where no lifted pose):
+        what a search over discrete hypotheses (:mod:`pinrecon.starts.hypotheses`) adds."""
+        frames = np.asarray(frames, dtype=int)
+        pos = np.clip(np.searchsorted(self.frames, frames), 0, max(len(self.frames) - 1, 0))
+        have = (self.frames[pos] == frames) if len(self.frames) else np.zeros(len(frames), bool)
+        v = P[:, self.bones[:, 1]] - P[:, self.bones[:, 0]]
+        d = v / np.maximum(np.linalg.norm(v, axis=-1), 1e-12)[..., None]
+        s = np.sum((d - self.L[pos] @ np.asarray(R).T) ** 2, axis=-1)
+        return np.where(have[:, None], 0.5 * self.w[pos] * self._robust(s)[0], 0.0)
+
     # -- rows -----------------------------------------------------------------------------
     def evaluate(self, state: State, jacobian: bool = True, R=None) -> RowBlock:
         d, length = self.directions(state)

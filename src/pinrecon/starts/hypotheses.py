@@ -28,7 +28,8 @@ that smoother, made tractable by the figure's structure (geometry in :mod:`.limb
    limits it has to violate (knees and elbows bend one way), how far it has to stay from
    its ray to respect them (across the ray as reprojection at ``weights.sigma_px``, along
    it at ``sigma_pull_m``), the posture prior and, where a 3D keyframe is given, the
-   keyframe. The posture prior scores ``0.5 |r|^2`` of its rows: for the generic human's
+   keyframe, and the lifted-pose rows (:mod:`pinrecon.rows.lifted`) of the
+   chain's bones. The posture prior scores ``0.5 |r|^2`` of its rows: for the generic human's
    robust prior those are reweighted, ``0.5 m^2 / (1 + m^2 / k^2)`` at a Mahalanobis
    distance ``m`` under the Cauchy loss, bounded by ``k^2 / 2``: a pose unlike the
    prior's clips is not ranked against another unlike them (scored with the loss itself,
@@ -76,6 +77,7 @@ from scipy.ndimage import minimum_filter1d
 
 from ..problem import ReconstructionProblem, posture_row, rest_pose
 from ..rows import JointLimits, Points3D, Posture, State
+from ..rows.lifted import LiftedPose
 from ..solver import SolverOptions, solve
 from .keyframes import keyframe_start
 from .limbs import (
@@ -309,6 +311,10 @@ def _score_states(problem, chains, frames, Q_base, D, options, sigma_pull_m, sig
     limits = JointLimits(fig, F, w.sigma_limits)
     posture = _posture(fig, F, w, active)
     no_frames = np.zeros(0, int)  # the posture row reads Q only
+    # a lifter's bone directions (rows.lifted), the rotation to its axes read at the base
+    lifted = [r for r in problem.rows if isinstance(r, LiftedPose)]
+    base = problem.state(Q_base, jacobian=False) if lifted else None
+    lifted = [(r, r.rotation(base)) for r in lifted]
     unary = [np.zeros((F, c.n_states)) for c in chains]
     dirs = [np.zeros((F, c.n_states, c.n_segments, 3)) for c in chains]
     for h in range(H):
@@ -336,6 +342,8 @@ def _score_states(problem, chains, frames, Q_base, D, options, sigma_pull_m, sig
             e = np.where(np.isfinite(kf_rel), P[:, c.kp[1:]] - P[:, c.kp[:1]] - np.nan_to_num(kf_rel), 0.0)
             has = np.isfinite(sig_kf)
             cost[has] += 0.5 * np.sum(e[has] ** 2, axis=(1, 2)) / sig_kf[has] ** 2
+            for row, R in lifted:
+                cost += row.bone_costs(P, frames, R)[:, np.isin(row.bones, c.kp).all(axis=1)].sum(axis=1)
             unary[ci][:, h] = cost
             seg = np.diff(P[:, c.kp], axis=1)
             dirs[ci][:, h] = seg / np.maximum(np.linalg.norm(seg, axis=-1, keepdims=True), 1e-12)
