@@ -88,7 +88,7 @@ def drop_detections(tracks: Tracks, share: float, seed: int) -> Tracks:
     pts[t[pick], k[pick]] = np.nan
     if conf is not None:
         conf[t[pick], k[pick]] = 0.0
-    return Tracks(pts, tracks.names, tracks.fps, conf, tracks.source, tracks.layout)
+    return Tracks(pts, tracks.names, tracks.fps, conf, tracks.source, tracks.layout, tracks.lifted)
 
 
 def stability(figure, tracks: Tracks | Sequence[Tracks], camera, keyframes=None, *, result: Result | None = None,
