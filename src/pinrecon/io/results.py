@@ -122,6 +122,9 @@ EXTRAS = {
     "stability_drop": ((), "number", True), "stability_seeds": ((None,), "integer", False),
     "stability_spread_mm": ((None, None), "number", True), "stability_keypoint_spread_mm": ((None, None), "number", True),
     "stability_names": ((None,), "string", False), "stability_threshold_mm": ((), "number", True),
+    "lifted_disagreement_deg": ((None, None), "number", False), "lifted_frame_deg": ((None,), "number", False),
+    "lifted_bones": ((None,), "string", False), "lifted_rotation": ((None, 3, 3), "number", True),
+    "lifted_threshold_deg": ((), "number", True), "lifted_spans": ((None, 4), "number", True),
 }
 #: extras that come together: one present, all of them must be
 EXTRAS_GROUPS = [
@@ -133,6 +136,8 @@ EXTRAS_GROUPS = [
     ("prior_default_unfamiliar", "prior_model"),
     ("stability_spread_mm", "stability_keypoint_spread_mm", "stability_names", "stability_threshold_mm",
      "stability_drop"),
+    ("lifted_disagreement_deg", "lifted_frame_deg", "lifted_bones", "lifted_rotation", "lifted_threshold_deg",
+     "lifted_spans"),
 ]
 
 
@@ -164,6 +169,11 @@ def check_extras(data: dict, path=None) -> None:
                                and np.all(spans[:, 1] <= n("prior_distance"))):
             raise InputError(f"spans must lie in the {n('prior_distance')} frames, first < last",
                              file=path, field="prior_unfamiliar_spans")
+    if "lifted_spans" in data:
+        _indices(data, "lifted_spans", 0, n("lifted_bones"), path)
+        if data["lifted_disagreement_deg"].shape[1:] != (n("lifted_bones"),):
+            raise InputError(f"must have one column per bone ({n('lifted_bones')})", file=path,
+                             field="lifted_disagreement_deg")
     if "stability_spread_mm" in data:
         spread, per_point = np.atleast_2d(data["stability_spread_mm"]), data["stability_keypoint_spread_mm"]
         if per_point.shape != (spread.shape[1], n("stability_names")):
