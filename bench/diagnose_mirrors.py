@@ -74,11 +74,10 @@ def diagnose(clip: str, keyframes: str, angle: float, terms: bool = False) -> No
 
         return mirror_stage(problem, res, options, callback, observe=observe, **kw)
 
-    # the one place reconstruct calls the stage, observed for this run only (the module, not
-    # the function pinrecon.reconstruct that shadows its name)
-    reconstruct_module = importlib.import_module("pinrecon.reconstruct")
-    original = reconstruct_module.mirror_stage
-    reconstruct_module.mirror_stage = staged
+    # the one place the pipeline calls the stage (pinrecon.stages), observed for this run only
+    stages_module = importlib.import_module("pinrecon.stages")
+    original = stages_module.mirror_stage
+    stages_module.mirror_stage = staged
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
@@ -86,7 +85,7 @@ def diagnose(clip: str, keyframes: str, angle: float, terms: bool = False) -> No
             res = pr.reconstruct(pr.Figure.human(), tracks, cam, keys, seed="auto")
             dt = time.perf_counter() - t0
     finally:
-        reconstruct_module.mirror_stage = original
+        stages_module.mirror_stage = original
     s = score(res.keypoints3d[:, res.figure.keypoint_index(names)], P, cam, names)
     print(f"{clip}, keyframes {keyframes}, {angle:g} degrees: PA-MPJPE {s['pa']:.1f} mm, flips {s['flips']:.1f} %, "
           f"{dt:.0f} s; {len(rows)} candidates (segments {', '.join(f'{a}-{b}' for a, b in SEGMENTS)})")

@@ -160,9 +160,10 @@ def _feet(run: Run) -> str | None:
 STAGES: dict[str, Callable[[Run], str | None]] = {
     "solve": _solve,
     "prior": _prior,
-    "turns": _warm("turns", turn_stage),
-    "mirrors": _warm("mirrors", mirror_stage),
-    "faults": _warm("faults", fault_stage),
+    # looked up when called, so a diagnostic may observe a stage (bench/diagnose_mirrors.py)
+    "turns": _warm("turns", lambda *a: turn_stage(*a)),
+    "mirrors": _warm("mirrors", lambda *a: mirror_stage(*a)),
+    "faults": _warm("faults", lambda *a: fault_stage(*a)),
     "focal": _focal,
     "feet": _feet,
 }
