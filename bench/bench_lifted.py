@@ -34,6 +34,9 @@ import numpy as np
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
+import quick  # noqa: E402 - bench/quick.py: --quick, applied before pinrecon is imported
+
+quick.take(["--clips", "walk", "--weights", "0", "25", "--frames", "60"])
 
 from bench_real import SEGMENTS, score, tracked_case  # noqa: E402  (bench/ is the script's folder)
 

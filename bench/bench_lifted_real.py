@@ -32,6 +32,9 @@ import numpy as np
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
+import quick  # noqa: E402 - bench/quick.py: --quick, applied before pinrecon is imported
+
+quick.take(["--cameras", "1", "--weights", "25"], cut=False)
 
 from bench_real import SEGMENTS  # noqa: E402
 
