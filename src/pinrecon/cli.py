@@ -91,23 +91,6 @@ def cmd_reconstruct(args) -> int:
     return _save_and_report(res, args, outs)
 
 
-def _with_lifted(tracks, args) -> list:
-    """The tracks with the 3D cues of ``--lifted`` (one file per ``--tracks``, in order) attached."""
-    from dataclasses import replace
-
-    from .errors import InputError
-    from .lifted import load_lifted
-
-    if len(args.lifted) != len(tracks):
-        raise InputError(f"{len(args.lifted)} --lifted for {len(tracks)} --tracks: give one per --tracks, in order",
-                         field="--lifted")
-    out = []
-    for cam, (t, path) in enumerate(zip(tracks, args.lifted)):
-        lf = load_lifted(path, fmt=args.lifted_format, layout=args.lifted_layout, frames=t.T, frame=args.lifted_frame)
-        out.append(replace(t, lifted=replace(lf, camera=cam)))
-    return out
-
-
 def _outputs(args):
     """Every file the command will write (``--out``, ``--save-figure`` and its keypoint map,
     ``--save-camera``), checked writable before the work (:class:`pinrecon.io.atomic.Outputs`)."""
