@@ -39,57 +39,39 @@ def pytest_collection_modifyitems(config, items):
             item.add_marker(skip)
 
 
-def data_file(name: str) -> Path:
-    """A registered third-party data file (pinrecon.datasets): from PINRECON_DATA or the cache.
-
-    Where it cannot be had, the test is skipped with the dataset's one-line reason; with
-    PINRECON_DATA set (as in CI) a missing file fails the test instead.
-    """
+def _registered(get: str, name: str, *, module: bool) -> Path:
+    """``pinrecon.datasets.<get>(name)``; where it cannot be had, the test (``module``: the whole
+    module) is skipped with the dataset's one-line reason, or, with PINRECON_DATA set (as in
+    CI), fails."""
     from pinrecon import datasets
 
     try:
-        return datasets.fetch(name, progressbar=False)
+        return getattr(datasets, get)(name, progressbar=False)
     except datasets.DatasetError as exc:
         if datasets.data_root() is not None:
             raise
-        pytest.skip(str(exc))
+        pytest.skip(str(exc), allow_module_level=module)
+
+
+def data_file(name: str) -> Path:
+    """A registered third-party data file (pinrecon.datasets): from PINRECON_DATA or the cache;
+    where it cannot be had, the test is skipped (fails with PINRECON_DATA set)."""
+    return _registered("fetch", name, module=False)
 
 
 def data_folder(prefix: str) -> Path:
     """A registered folder of third-party files (see :func:`data_file`)."""
-    from pinrecon import datasets
-
-    try:
-        return datasets.folder(prefix, progressbar=False)
-    except datasets.DatasetError as exc:
-        if datasets.data_root() is not None:
-            raise
-        pytest.skip(str(exc))
+    return _registered("folder", prefix, module=False)
 
 
 def data_path(name: str) -> Path:
-    """:func:`data_file` for a module's constants: where the file cannot be had, the whole
-    module is skipped with the dataset's one-line reason (fails with PINRECON_DATA set)."""
-    from pinrecon import datasets
-
-    try:
-        return datasets.fetch(name, progressbar=False)
-    except datasets.DatasetError as exc:
-        if datasets.data_root() is not None:
-            raise
-        pytest.skip(str(exc), allow_module_level=True)
+    """:func:`data_file` for a module's constants: the whole module is skipped instead."""
+    return _registered("fetch", name, module=True)
 
 
 def data_dir(prefix: str) -> Path:
     """:func:`data_folder` for a module's constants (see :func:`data_path`)."""
-    from pinrecon import datasets
-
-    try:
-        return datasets.folder(prefix, progressbar=False)
-    except datasets.DatasetError as exc:
-        if datasets.data_root() is not None:
-            raise
-        pytest.skip(str(exc), allow_module_level=True)
+    return _registered("folder", prefix, module=True)
 
 
 WALK = "mocap/cmu-mb_02_01.bvh"  # registered names (pinrecon.datasets) of the clips tests use
