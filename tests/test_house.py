@@ -151,7 +151,7 @@ LAYERS = [
     ("starts", ["pinrecon.starts", "pinrecon.planarity"]),
     ("result", ["pinrecon.result"]),
     ("pipeline", ["pinrecon.reconstruct", "pinrecon.stages", "pinrecon.synthetic", "pinrecon.faults", "pinrecon.metrics",
-                  "pinrecon.windowed", "pinrecon.unfamiliar", "pinrecon.stability"]),
+                  "pinrecon.windowed", "pinrecon.unfamiliar", "pinrecon.prior_yield", "pinrecon.stability"]),
     ("exports and pictures", ["pinrecon.io.bvh_export", "pinrecon.io.csv_export", "pinrecon.viz"]),
     ("arguments and batches", ["pinrecon.arguments", "pinrecon.batch"]),
     ("applications", ["pinrecon.cli", "pinrecon.commands", "pinrecon.demo", "pinrecon.workbench", "pinrecon"]),

@@ -63,7 +63,7 @@ def test_stage_reports_round_trip_through_the_result_file(full, tmp_path):
 
 
 def test_unknown_stage_is_refused_with_the_valid_names(short_walk, human):
-    with pytest.raises(InputError, match="unknown stage.*'mirror'.*prior, turns, mirrors, faults, focal, feet"):
+    with pytest.raises(InputError, match="unknown stage.*'mirror'.*prior, yield, turns, mirrors, faults, focal, feet"):
         _solve(short_walk, human, skip=("mirror",))
     with pytest.raises(InputError, match="'solve'"):
         _solve(short_walk, human, skip=("solve",))

@@ -397,6 +397,8 @@ def reconstruct(
         result.extras.update(run.feet.to_extras())
     if run.switch is not None:
         result.extras.update(switch_extras(*run.switch))
+    if run.conflict is not None:
+        result.extras.update(run.conflict.to_extras())
     result.stages = reports
     return result
 

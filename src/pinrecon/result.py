@@ -230,6 +230,10 @@ class Result:
             lines.append(f"pose prior: {x['prior_model']!s} (the default did not know "
                          f"{100 * float(x['prior_default_unfamiliar']):.0f} % of the frames' poses as first solved: solved again "
                          "with this broader one; pinrecon.unfamiliar.broader_prior)")
+        conflict = [str(j) for j in x.get("prior_conflict_joints", ())]
+        if conflict:
+            lines.append(f"the data disagree with the pose prior on {len(conflict)} joint(s) ({', '.join(conflict)}): "
+                         "the prior was widened and re-centred there (pinrecon.prior_yield)")
         d, lim, sp = unfamiliar_frames(x)
         if len(sp):
             n = int(np.sum(d > lim))

@@ -49,7 +49,7 @@ from scipy.linalg import LinAlgError
 
 from .banded import ActiveNormalEquations, ArrowheadFactor, BandedNormalEquations, schur_complement
 
-__all__ = ["SolverOptions", "IterationReport", "SolveResult", "globals_of", "globals_information", "solve", "BandedNormalEquations", "ArrowheadFactor"]
+__all__ = ["SolverOptions", "IterationReport", "SolveResult", "flatten_blocks", "globals_of", "globals_information", "solve", "BandedNormalEquations", "ArrowheadFactor"]
 
 
 @dataclass
@@ -208,6 +208,11 @@ def _globals_gradient(blocks, residuals, n_g):
         if b.Jg is not None and r.size:
             np.add.at(gg, np.asarray(b.gcols, dtype=int), np.einsum("nmg,nm->g", b.Jg, r))
     return gg
+
+
+def flatten_blocks(blocks) -> list:
+    """The row blocks of ``problem.evaluate(...)`` as one flat list (a row kind may return several)."""
+    return _flatten(blocks)
 
 
 def _flatten(blocks):

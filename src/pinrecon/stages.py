@@ -16,6 +16,8 @@ changed). A stage that has nothing to do returns ``None`` and is reported as ski
 ``prior``  the generic human's pose prior switched to its broader mixture and the clip solved
            again when more of its poses than :func:`pinrecon.unfamiliar.switch_share` are
            unknown to the default
+``yield``  the pose prior widened and re-centred where the data disagree with it
+           (:mod:`pinrecon.prior_yield`), the clip solved again warm
 ``turns``  fast turns the solution holds a turn too few of, wound (warm re-solves)
 ``mirrors`` the limbs' spans mirrored where that lowers the MAP cost (with the broader prior)
 ``faults`` left/right swaps of the detector repaired (warm re-solve), outliers reported
@@ -38,6 +40,7 @@ import numpy as np
 from .contact import solve_on_the_floor
 from .errors import InputError
 from .faults import fault_stage, report_outliers
+from .prior_yield import yield_to_data
 from .problem import ReconstructionProblem, make_problem
 from .result import StageReport
 from .solver import SolveResult, solve
@@ -76,6 +79,7 @@ class Run:
     switch: tuple | None = None
     judge: str | None = None
     feet: object = None
+    conflict: object = None  # the pose prior's variance factors (pinrecon.prior_yield.PriorConflict)
     caught: list = field(default_factory=list)
 
 
@@ -120,6 +124,19 @@ def _prior(run: Run) -> str | None:
     return f"pose prior {default} -> {switch[0]} ({100 * switch[1]:.0f} % of the poses unfamiliar), solved again"
 
 
+def _yield(run: Run) -> str | None:
+    run.problem, res, conflict = yield_to_data(run.problem, run.res, run.options, run.callback)
+    if conflict is None:
+        return None
+    run.conflict = conflict
+    if res is run.res:
+        return "the pose prior agrees with the data"
+    run.res = res
+    joints = conflict.conflicting
+    return (f"the data disagree with the pose prior on {len(joints)} joint(s) ({', '.join(joints[:4])}"
+            f"{', ...' if len(joints) > 4 else ''}): prior widened and re-centred there, solved again")
+
+
 def _warm(name: str, fn) -> Callable:
     """A stage that re-solves warm through ``fn(problem, res, options, callback) -> res``."""
 
@@ -160,6 +177,7 @@ def _feet(run: Run) -> str | None:
 STAGES: dict[str, Callable[[Run], str | None]] = {
     "solve": _solve,
     "prior": _prior,
+    "yield": _yield,
     # looked up when called, so a diagnostic may observe a stage (bench/diagnose_mirrors.py)
     "turns": _warm("turns", lambda *a: turn_stage(*a)),
     "mirrors": _warm("mirrors", lambda *a: mirror_stage(*a)),

@@ -17,6 +17,7 @@ plays the role of DiFranco et al.'s stabilising term ``kI``, in joint space.
 
 from __future__ import annotations
 
+import copy
 import functools
 from pathlib import Path
 
@@ -88,8 +89,12 @@ class PosePrior(Posture):
     The component's constant is one more row (its Jacobian zero), so
     that ``0.5 |r|^2`` is the frame's cost; the chosen component may change between iterations.
 
-    Robust losses are reweighted rows (as the measurement's): the rows are scaled by
-    ``sqrt(rho'(m) / m)`` and the block reports the true cost. The rows of every correlated
+    With a robust loss, each joint outside ``qcorr`` pays ``rho`` of its own distance
+    ``|q - mean| / sigma`` too (a prior tolerant of its own errors: a joint its clips never
+    moved is pulled back with a bounded force, not a spring). Robust losses are reweighted rows
+    (as the measurement's): the rows are scaled by ``sqrt(rho'(m) / m)`` and the block reports
+    the true cost. :meth:`adapted` widens and re-centres the rows for one clip
+    (:mod:`pinrecon.prior_yield`). The rows of every correlated
     joint are written (a joint that is not ``active`` enters at its current value, i.e. the
     conditional Gaussian of the active ones); the Jacobian covers the active columns.
     """
@@ -128,12 +133,36 @@ class PosePrior(Posture):
         # columns of the active correlated joints: (k in qcorr, k in cols)
         self._corr_in = np.array([i for i, q in enumerate(self.qcorr) if int(q) in pos], int)
         self._corr_col = np.array([pos[int(self.qcorr[i])] for i in self._corr_in], int)
-        # (K, rows, cols) each component's Jacobian of its rows (the constant's row: zero); fixed
+        #: the clips' own means and whitening, which :meth:`distances` measures against whatever
+        #: :meth:`adapted` makes of the rows
+        self.clips = (self.means, self.As)
+        self._jacobian_blocks()
+
+    def _jacobian_blocks(self):
+        """(K, rows, cols) each component's Jacobian of its rows (the constant's row: zero)."""
         nd, dc, mixed = len(self.diag), len(self.qcorr), len(self.means) > 1
         self._Jf = np.zeros((len(self.means), nd + dc + int(mixed), len(self.cols)))
         self._Jf[:, np.arange(nd), self.diag] = self.inv_sigma[self.diag]
         for i, A in enumerate(self.As):
             self._Jf[i][np.ix_(nd + np.arange(dc), self._corr_col)] = A[:, self._corr_in]
+
+    def adapted(self, widen_diag, widen_corr, centre_diag=None, centre_corr=None) -> PosePrior:
+        """A copy whose rows answer to a clip: each joint outside the correlated ones with its
+        standard deviation times ``widen_diag[i]`` (in the order of ``diag``) and its mean moved
+        to ``centre_diag`` (or kept); each correlated row ``i`` (of every component's whitening)
+        divided by ``widen_corr[i]``, every component's mean moved by ``centre_corr`` (a (d,)
+        offset, or none). :meth:`distances` still measures the clips' distances."""
+        new = copy.copy(self)
+        new.inv_sigma = self.inv_sigma.copy()
+        new.inv_sigma[self.diag] /= np.asarray(widen_diag, float)
+        new.As = self.As / np.asarray(widen_corr, float)[None, :, None]
+        new.q_ref = self.q_ref.copy()
+        if centre_diag is not None:
+            new.q_ref[self.diag] = centre_diag
+        if centre_corr is not None:
+            new.means = self.means + np.asarray(centre_corr, float)
+        new._jacobian_blocks()
+        return new
 
     def _residuals(self, Q):
         """(rd, rc, const, best): the diagonal rows (joints outside ``qcorr``), the Mahalanobis
@@ -148,6 +177,13 @@ class PosePrior(Posture):
         best = np.argmin(cost, axis=1)
         return rd, rc[np.arange(len(Q)), best], self.consts[best], best
 
+    def raw_rows(self, Q) -> tuple[np.ndarray, np.ndarray]:
+        """``(rd, rc)``: the rows of trajectory ``Q`` before any robust reweighting: (T, nd)
+        the joints outside ``qcorr``, (T, d) the correlated joints' whitened offsets from each
+        frame's component."""
+        rd, rc, _, _ = self._residuals(np.asarray(Q, float))
+        return rd, rc
+
     def _whitened(self, Q):
         """(T, K, d) the correlated joints' offsets from each component's mean, whitened by it
         (in units of ``scale``): their norms are the frame's Mahalanobis distances."""
@@ -160,8 +196,10 @@ class PosePrior(Posture):
         cv = None
         if self.k is not None:  # the robust loss on the frame's distance m, reweighted rows
             rho, sw = self._robust(np.linalg.norm(rc, axis=1))
-            cv = float(rho.sum() + const.sum() + 0.5 * (rd**2).sum())
+            rho_d, sw_d = self._robust(np.abs(rd))  # each joint outside the correlated ones alone
+            cv = float(rho.sum() + const.sum() + rho_d.sum())
             rc = rc * sw[:, None]
+            rd = rd * sw_d
         parts = [rd, rc] + ([np.sqrt(2.0 * const)[:, None]] if mixed else [])  # the component's constant
         r = np.concatenate(parts, axis=1)
         J = None
@@ -173,6 +211,7 @@ class PosePrior(Posture):
             else:
                 w_rows = np.ones((N, nr))
                 if self.k is not None:
+                    w_rows[:, :nd] = sw_d
                     w_rows[:, nd:nd + dc] = sw[:, None]
                 J = (w_rows[:, :, None] * Jf[best])[:, None]
         return RowBlock(self.frames[:, None], r, J, self.cols, self.name, cost_value=cv)
@@ -190,7 +229,9 @@ class PosePrior(Posture):
         """(T,) each frame's Mahalanobis distance of the correlated joints from the mean (of
         a mixture: from the nearest component's), in standard deviations of the prior's clips
         (not in units of ``scale``)."""
-        return self.scale * np.linalg.norm(self._whitened(np.asarray(Q, float)), axis=2).min(axis=1)
+        means, As = self.clips
+        z = np.einsum("kij,tkj->tki", As, np.asarray(Q, float)[:, None, self.qcorr] - means)
+        return self.scale * np.linalg.norm(z, axis=2).min(axis=1)
 
     def frame_costs(self, Q) -> np.ndarray:
         """(T,) each frame's cost of trajectory ``Q`` (T, nq) under this prior (the robust
@@ -198,8 +239,9 @@ class PosePrior(Posture):
         component's with that component's constant)."""
         rd, rc, const, _ = self._residuals(np.asarray(Q, float))
         m = np.linalg.norm(rc, axis=1)
-        rho = 0.5 * m**2 if self.k is None else self._robust(m)[0]
-        return rho + const + 0.5 * (rd**2).sum(axis=1)
+        if self.k is None:
+            return 0.5 * m**2 + const + 0.5 * (rd**2).sum(axis=1)
+        return self._robust(m)[0] + const + self._robust(np.abs(rd))[0].sum(axis=1)
 
 
 def pose_prior(figure, rest: np.ndarray, name: str = "human_pose") -> tuple[np.ndarray, np.ndarray]:

@@ -1,0 +1,126 @@
+"""The pose prior yields to strong data: its widths and centre estimated from the clip.
+
+The generic human's pose prior (:class:`~pinrecon.rows.posture.PosePrior`) is fitted to a few
+dozen motion-capture clips. Where the data decide a joint (point keyframes, several cameras,
+learned 3D cues), a prior whose mean or width is wrong for this subject only biases the result:
+on the synthetic walk of ``bench/bench_engine.py`` (one orthographic view, 3D keyframes every
+8 frames) the default prior held the neck 15 standard deviations from where the keyframes put
+it. Where the data do not decide a joint (a limb's depth in one view), the prior is what decides
+it and must keep its width.
+
+:func:`prior_conflict` tells the two apart with a variance-component estimate (Helmert, Förstner):
+for each group of the prior's rows (one per joint outside the correlated ones, one per row of
+the correlated joints' whitening), ``s2 = |r_g|^2 / red_g``, the group's squared residuals at the
+solution over its redundancy ``red_g = n_g - tr(J_g H^-1 J_g^T)`` (``H``: the Gauss-Newton
+matrix of all rows; the trace by Hutchinson's estimator, ``probes`` solves with the factor).
+A group the data decide has redundancy near its row count, and ``s2`` is how many of the prior's
+variances its residuals span; a group only the prior decides has little redundancy and little
+residual. Under a prior that fits the clip, ``s2`` is about 1.
+
+:func:`yield_to_data` acts on it: when some group's ``s2`` exceeds :data:`CONFLICT` the prior is
+widened by ``sqrt(s2)`` on those groups and re-centred by the share of each joint the data decide
+(the clip's mean pose, shrunk toward the prior's by the redundancy), and the clip solved again
+from where it was. The stage ``yield`` of :mod:`pinrecon.stages` runs it; the result says which
+joints the data disagreed with (``Result.extras["prior_conflict_joints"]``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .banded import ActiveNormalEquations, ArrowheadFactor
+from .rows.posture import PosePrior
+from .solver import flatten_blocks, globals_of, solve
+
+__all__ = ["CONFLICT", "PriorConflict", "prior_conflict", "yield_to_data"]
+
+#: a row group's variance factor past which the data are said to disagree with the prior: the
+#: estimate's own spread over a clip of a few hundred frames is about 0.1
+CONFLICT = 4.0
+
+
+@dataclass
+class PriorConflict:
+    """Per row group of a :class:`PosePrior`: ``s2`` the variance factor, ``redundancy`` the share
+    of the group's rows the data decide (0 to 1), ``names`` the joints (a correlated row is named
+    by its joint in the whitening's order)."""
+
+    s2: np.ndarray
+    redundancy: np.ndarray
+    names: list[str]
+    n_diag: int
+
+    @property
+    def conflicting(self) -> list[str]:
+        return [n for n, s in zip(self.names, self.s2) if s > CONFLICT]
+
+    def to_extras(self) -> dict:
+        return {"prior_conflict_s2": np.asarray(self.s2, float),
+                "prior_conflict_joints": np.array(self.conflicting, dtype=str)}
+
+
+def _prior_row(problem) -> tuple[int, PosePrior] | None:
+    for i, row in enumerate(problem.rows):
+        if isinstance(row, PosePrior):
+            return i, row
+    return None
+
+
+def prior_conflict(problem, x, g=None, *, probes: int = 16, seed: int = 0) -> PriorConflict | None:
+    """The variance factors of the problem's pose prior at the solution ``x`` (globals ``g``
+    held); None without a learned pose prior."""
+    found = _prior_row(problem)
+    if found is None:
+        return None
+    _, row = found
+    blocks = flatten_blocks(problem.evaluate(x, True) if g is None else problem.evaluate(x, True, g))
+    normal = ActiveNormalEquations(problem.n_frames, problem.nv, blocks, problem.active)
+    normal.assemble(blocks)
+    diag = normal.diagonal()
+    normal.ab[0] += 1e-9 * max(float(diag.max()), 1e-300) + np.where(diag > 0, 0.0, 1.0)
+    factor = ArrowheadFactor(normal.ab)
+    pb = next(b for b in blocks if b.name == row.name)
+    J = pb.J[:, 0]  # (N, m, c): a pose prior row group touches its own frame
+    frames, cols = pb.frames[:, 0], np.asarray(pb.cols)
+    nd, dc = len(row.diag), len(row.qcorr)
+    rng = np.random.default_rng(seed)
+    lev = np.zeros(J.shape[1])
+    for _ in range(probes):  # Hutchinson: E[z_i (J H^-1 J^T z)_i] = (J H^-1 J^T)_ii
+        z = rng.choice([-1.0, 1.0], size=J.shape[:2])
+        v = np.zeros((problem.n_frames, problem.nv))
+        np.add.at(v, (frames[:, None], cols[None, :]), np.einsum("nmc,nm->nc", J, z))
+        u, _ = factor.solve(v[:, normal.act].reshape(-1))
+        U = normal.expand(u)[frames][:, cols]
+        lev += (z * np.einsum("nmc,nc->nm", J, U)).sum(axis=0)
+    n = len(frames)
+    red = np.clip(n - lev[:nd + dc] / probes, 1.0, n)
+    rd, rc = row.raw_rows(x)  # before reweighting: the loss is robust, the estimate is not
+    s2 = np.concatenate([(rd**2).sum(axis=0), (rc**2).sum(axis=0)]) / red
+    m = problem.figure.model
+    qname = {m.idx_qs[j]: m.names[j] for j in range(1, m.njoints) if m.nqs[j] == 1}
+    names = [qname.get(int(row.qidx[k]), str(k)) for k in row.diag] + [qname.get(int(q), str(q)) for q in row.qcorr]
+    return PriorConflict(s2, red / n, names, nd)
+
+
+def yield_to_data(problem, res, options=None, callback=None, *, probes: int = 16):
+    """``(problem, res, conflict)``: when the data disagree with the pose prior
+    (:func:`prior_conflict`), the problem with the prior widened and re-centred where they do,
+    solved again from ``res``; else the inputs unchanged. ``conflict`` is None without a prior."""
+    found = _prior_row(problem)
+    conflict = None if found is None else prior_conflict(problem, res.x, globals_of(res), probes=probes)
+    if conflict is None or not conflict.conflicting:
+        return problem, res, conflict
+    i, row = found
+    nd = conflict.n_diag
+    widen = np.sqrt(np.maximum(conflict.s2, 1.0))
+    x = np.asarray(res.x, float)
+    share = conflict.redundancy
+    centre_diag = row.q_ref[row.diag] + share[:nd] * (x[:, row.qidx[row.diag]].mean(axis=0) - row.q_ref[row.diag])
+    offset = x[:, row.qcorr].mean(axis=0) - row.means.mean(axis=0)
+    centre_corr = float(np.mean(share[nd:])) * offset
+    adapted = problem.with_rows([], after=len(problem.rows))  # a copy with its own list of rows
+    adapted.rows[i] = row.adapted(widen[:nd], widen[nd:], centre_diag, centre_corr)  # same frames
+    out = solve(adapted, res.x, options, callback, active=problem.active, g0=globals_of(res))
+    return adapted, out, conflict
