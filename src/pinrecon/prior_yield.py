@@ -75,12 +75,18 @@ def prior_conflict(problem, x, g=None, *, probes: int = 16, seed: int = 0) -> Pr
     if found is None:
         return None
     _, row = found
+    n_g = 0 if g is None else int(np.size(g))
     blocks = flatten_blocks(problem.evaluate(x, True) if g is None else problem.evaluate(x, True, g))
     normal = ActiveNormalEquations(problem.n_frames, problem.nv, blocks, problem.active)
-    normal.assemble(blocks)
+    _, border = normal.assemble(blocks, n_g)
     diag = normal.diagonal()
-    normal.ab[0] += 1e-9 * max(float(diag.max()), 1e-300) + np.where(diag > 0, 0.0, 1.0)
-    factor = ArrowheadFactor(normal.ab)
+    floor = 1e-9 * max(float(diag.max()), 1e-300)
+    normal.ab[0] += floor + np.where(diag > 0, 0.0, 1.0)
+    B, C = (None, None) if border is None else border[:2]
+    if C is not None:  # the globals (a figure's proportions, a camera) are unknowns too
+        C = C + np.diag(floor + np.where(np.diag(C) > 0, 0.0, 1.0))
+    factor = ArrowheadFactor(normal.ab, B, C)
+    zero_g = np.zeros(n_g)
     pb = next(b for b in blocks if b.name == row.name)
     J = pb.J[:, 0]  # (N, m, c): a pose prior row group touches its own frame
     frames, cols = pb.frames[:, 0], np.asarray(pb.cols)
@@ -91,7 +97,7 @@ def prior_conflict(problem, x, g=None, *, probes: int = 16, seed: int = 0) -> Pr
         z = rng.choice([-1.0, 1.0], size=J.shape[:2])
         v = np.zeros((problem.n_frames, problem.nv))
         np.add.at(v, (frames[:, None], cols[None, :]), np.einsum("nmc,nm->nc", J, z))
-        u, _ = factor.solve(v[:, normal.act].reshape(-1))
+        u, _ = factor.solve(v[:, normal.act].reshape(-1), zero_g)
         U = normal.expand(u)[frames][:, cols]
         lev += (z * np.einsum("nmc,nc->nm", J, U)).sum(axis=0)
     n = len(frames)
@@ -117,9 +123,11 @@ def yield_to_data(problem, res, options=None, callback=None, *, probes: int = 16
     widen = np.sqrt(np.maximum(conflict.s2, 1.0))
     x = np.asarray(res.x, float)
     share = conflict.redundancy
-    centre_diag = row.q_ref[row.diag] + share[:nd] * (x[:, row.qidx[row.diag]].mean(axis=0) - row.q_ref[row.diag])
+    hit = conflict.s2 > CONFLICT
+    move = np.where(hit[:nd], share[:nd], 0.0)
+    centre_diag = row.q_ref[row.diag] + move * (x[:, row.qidx[row.diag]].mean(axis=0) - row.q_ref[row.diag])
     offset = x[:, row.qcorr].mean(axis=0) - row.means.mean(axis=0)
-    centre_corr = float(np.mean(share[nd:])) * offset
+    centre_corr = float(np.mean(share[nd:])) * offset if hit[nd:].any() else None
     adapted = problem.with_rows([], after=len(problem.rows))  # a copy with its own list of rows
     adapted.rows[i] = row.adapted(widen[:nd], widen[nd:], centre_diag, centre_corr)  # same frames
     out = solve(adapted, res.x, options, callback, active=problem.active, g0=globals_of(res))
