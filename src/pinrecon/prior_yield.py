@@ -110,18 +110,18 @@ def prior_conflict(problem, x, g=None, *, probes: int = 16, seed: int = 0) -> Pr
     return PriorConflict(s2, red / n, names, nd)
 
 
-def yield_to_data(problem, res, options=None, callback=None, *, probes: int = 16):
-    """``(problem, res, conflict)``: when the data disagree with the pose prior
-    (:func:`prior_conflict`), the problem with the prior widened and re-centred where they do,
-    solved again from ``res``; else the inputs unchanged. ``conflict`` is None without a prior."""
+def adapt_prior(problem, x, g=None, *, probes: int = 16):
+    """``(problem, conflict)``: the problem with its pose prior widened and re-centred where the
+    data at ``x`` (globals ``g``) disagree with it (:func:`prior_conflict`), or unchanged;
+    ``conflict`` is None without a prior."""
     found = _prior_row(problem)
-    conflict = None if found is None else prior_conflict(problem, res.x, globals_of(res), probes=probes)
+    conflict = None if found is None else prior_conflict(problem, x, g, probes=probes)
     if conflict is None or not conflict.conflicting:
-        return problem, res, conflict
+        return problem, conflict
     i, row = found
     nd = conflict.n_diag
     widen = np.sqrt(np.maximum(conflict.s2, 1.0))
-    x = np.asarray(res.x, float)
+    x = np.asarray(x, float)
     share = conflict.redundancy
     hit = conflict.s2 > CONFLICT
     move = np.where(hit[:nd], share[:nd], 0.0)
@@ -130,5 +130,20 @@ def yield_to_data(problem, res, options=None, callback=None, *, probes: int = 16
     centre_corr = float(np.mean(share[nd:])) * offset if hit[nd:].any() else None
     adapted = problem.with_rows([], after=len(problem.rows))  # a copy with its own list of rows
     adapted.rows[i] = row.adapted(widen[:nd], widen[nd:], centre_diag, centre_corr)  # same frames
-    out = solve(adapted, res.x, options, callback, active=problem.active, g0=globals_of(res))
-    return adapted, out, conflict
+    return adapted, conflict
+
+
+def yield_to_data(problem, res, options=None, callback=None, *, probes: int = 16, rounds: int = 3):
+    """``(problem, res, conflict)``: while the data disagree with the pose prior (at most
+    ``rounds`` times), the prior adapted (:func:`adapt_prior`) and the clip solved again from
+    where it was; else the inputs unchanged. ``conflict`` is the first round's (None without a
+    prior)."""
+    first = None
+    for _ in range(rounds):
+        adapted, conflict = adapt_prior(problem, res.x, globals_of(res), probes=probes)
+        first = first or conflict
+        if adapted is problem:
+            break
+        problem = adapted
+        res = solve(problem, res.x, options, callback, active=problem.active, g0=globals_of(res))
+    return problem, res, first

@@ -41,7 +41,7 @@ from .rows.lifted import LiftedPose, disagreement_extras
 from .rows.posture import prior_for
 from .solver import SolveResult, SolverOptions, globals_of, solve
 from .stages import Run, StageReport, check_skip, run_stages
-from .starts import available_starts, get_start, initial_trajectory
+from .starts import available_starts, get_start, initial_trajectory, sparse_keyframes
 from .starts.camera_auto import (
     AutoCamera,
     auto_camera,
@@ -389,7 +389,8 @@ def reconstruct(
     run = Run(problem, inputs, mode, _start_name(init, seed), options, callback, auto, default_prior=default,
               lengths=bool(lengths_from_tracks) and _lengths_measurable(auto and auto["projection"]) and _cold_start(init),
               switch_limit=limit, mirrors=_mirrors(problem, init), floor=floor, contact=contact,
-              contact_settings=contact_settings, measure_lengths=_lengths_from_tracks)
+              contact_settings=contact_settings, measure_lengths=_lengths_from_tracks,
+              yield_at_start=_yield_at_start(problem, keyframes, init, seed, skip))
     reports = run_stages(run, skip, progress)
     # a clip solved again with the broader prior is judged by the default's clips (a fallback knows no poses)
     result = _package(run.problem, run.res, run.auto, judge=run.judge)
@@ -450,6 +451,13 @@ def _mirrors(problem, init) -> bool:
     know, PA-MPJPE without keyframes went from 74.0 mm before the stage to 41.1 now (arms
     only, runs cut at dips; bench/README.md, "Mirrored limb spans")."""
     return _cold_start(init) and problem.weights.pose_prior_model in BROADER_PRIOR.values()
+
+
+def _yield_at_start(problem, keyframes, init, seed, skip) -> bool:
+    """Whether the pose prior is adapted to the start before the solve (stage ``yield``):
+    when the start is the 3D keyframes' poses, dense enough that no search runs."""
+    return ("yield" not in skip and has_point_keyframes(keyframes) and _start_name(init, seed) == "auto"
+            and not sparse_keyframes(problem))
 
 
 def _cold_start(init) -> bool:

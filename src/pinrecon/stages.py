@@ -12,10 +12,12 @@ changed). A stage that has nothing to do returns ``None`` and is reported as ski
 
 =========  ======================================================================================
 ``solve``  the start (the rest pose placed on the tracks, or the keyframes, or the named start;
-           with one camera, the limbs' lengths measured from the tracks) and the batch solve
+           with one camera, the limbs' lengths measured from the tracks) and the batch solve;
+           a start that is dense 3D keyframes' poses first adapts the pose prior to them
+           (:func:`pinrecon.prior_yield.adapt_prior`)
 ``prior``  the generic human's pose prior switched to its broader mixture and the clip solved
            again when more of its poses than :func:`pinrecon.unfamiliar.switch_share` are
-           unknown to the default
+           unknown to the default (not when the prior was adapted to keyframes: they decide)
 ``yield``  the pose prior widened and re-centred where the data disagree with it
            (:mod:`pinrecon.prior_yield`), the clip solved again warm
 ``turns``  fast turns the solution holds a turn too few of, wound (warm re-solves)
@@ -40,7 +42,7 @@ import numpy as np
 from .contact import solve_on_the_floor
 from .errors import InputError
 from .faults import fault_stage, report_outliers
-from .prior_yield import yield_to_data
+from .prior_yield import adapt_prior, yield_to_data
 from .problem import ReconstructionProblem, make_problem
 from .result import StageReport
 from .solver import SolveResult, solve
@@ -75,6 +77,7 @@ class Run:
     contact: object = None
     contact_settings: object = None
     measure_lengths: Callable | None = None  # (problem, q0, start, inputs) -> (problem, q0)
+    yield_at_start: bool = False  # the pose prior adapted to the start (the keyframes' poses) before the solve
     # what the stages leave for the result
     switch: tuple | None = None
     judge: str | None = None
@@ -94,6 +97,10 @@ def _solve(run: Run) -> str:
             run.problem, q0 = run.measure_lengths(run.problem, q0, run.start, run.inputs)
             if getattr(run.problem, "measured_lengths", None):
                 what += f", {len(run.problem.measured_lengths)} limb lengths measured from the tracks"
+        if run.yield_at_start:  # the start is the keyframes' poses: the data's own, before any compromise
+            run.problem, run.conflict = adapt_prior(run.problem, q0, run.problem.g0)
+            if run.conflict is not None and run.conflict.conflicting:
+                what += f", pose prior adapted to the keyframes on {len(run.conflict.conflicting)} joint(s)"
         run.res = solve(run.problem, q0, run.options, run.callback, active=run.problem.active, g0=run.problem.g0)
     run.caught = list(caught or [])
     return f"{what}: {run.res.iterations} iterations, {run.res.status}"
@@ -107,6 +114,9 @@ def _reissue(run: Run) -> None:
 
 def _prior(run: Run) -> str | None:
     if run.default_prior is None:
+        return None
+    if run.conflict is not None and run.conflict.conflicting:  # adapted to the keyframes: they decide the poses
+        _reissue(run)
         return None
     unfamiliar = unfamiliar_poses(run.problem, run.problem.figure.normalize(run.res.x))
     switch = None if unfamiliar is None else broader_prior(run.default_prior, "auto", unfamiliar.to_extras(),
@@ -128,7 +138,8 @@ def _yield(run: Run) -> str | None:
     run.problem, res, conflict = yield_to_data(run.problem, run.res, run.options, run.callback)
     if conflict is None:
         return None
-    run.conflict = conflict
+    if run.conflict is None or not run.conflict.conflicting:  # what the start found, or this
+        run.conflict = conflict
     if res is run.res:
         return "the pose prior agrees with the data"
     run.res = res
