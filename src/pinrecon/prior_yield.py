@@ -34,7 +34,7 @@ from .banded import ActiveNormalEquations, ArrowheadFactor
 from .rows.posture import PosePrior
 from .solver import flatten_blocks, globals_of, solve
 
-__all__ = ["CONFLICT", "PriorConflict", "prior_conflict", "yield_to_data"]
+__all__ = ["CONFLICT", "PriorConflict", "adapt_prior", "decided_by_keyframes", "prior_conflict", "yield_to_data"]
 
 #: a row group's variance factor past which the data are said to disagree with the prior: the
 #: estimate's own spread over a clip of a few hundred frames is about 0.1
@@ -110,10 +110,12 @@ def prior_conflict(problem, x, g=None, *, probes: int = 16, seed: int = 0) -> Pr
     return PriorConflict(s2, red / n, names, nd)
 
 
-def adapt_prior(problem, x, g=None, *, probes: int = 16):
+def adapt_prior(problem, x, g=None, *, probes: int = 16, keyframes: bool = False):
     """``(problem, conflict)``: the problem with its pose prior widened and re-centred where the
     data at ``x`` (globals ``g``) disagree with it (:func:`prior_conflict`), or unchanged;
-    ``conflict`` is None without a prior."""
+    ``conflict`` is None without a prior. ``keyframes``: ``x`` is the 3D keyframes' own poses,
+    which then decide the poses the prior does not know (the adapted row says so:
+    ``decided_by_keyframes``)."""
     found = _prior_row(problem)
     conflict = None if found is None else prior_conflict(problem, x, g, probes=probes)
     if conflict is None or not conflict.conflicting:
@@ -130,7 +132,14 @@ def adapt_prior(problem, x, g=None, *, probes: int = 16):
     centre_corr = float(np.mean(share[nd:])) * offset if hit[nd:].any() else None
     adapted = problem.with_rows([], after=len(problem.rows))  # a copy with its own list of rows
     adapted.rows[i] = row.adapted(widen[:nd], widen[nd:], centre_diag, centre_corr)  # same frames
+    adapted.rows[i].decided_by_keyframes = keyframes or row.decided_by_keyframes
     return adapted, conflict
+
+
+def decided_by_keyframes(problem) -> bool:
+    """Whether the problem's pose prior was adapted to 3D keyframes' poses (:func:`adapt_prior`)."""
+    found = _prior_row(problem)
+    return found is not None and found[1].decided_by_keyframes
 
 
 def yield_to_data(problem, res, options=None, callback=None, *, probes: int = 16, rounds: int = 3):

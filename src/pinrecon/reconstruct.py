@@ -37,6 +37,7 @@ from .problem import (
 )
 from .result import Result, load_result
 from .rows import Measurement2D
+from .prior_yield import decided_by_keyframes
 from .rows.lifted import LiftedPose, disagreement_extras
 from .rows.posture import prior_for
 from .solver import SolveResult, SolverOptions, globals_of, solve
@@ -596,7 +597,7 @@ def _package(problem: ReconstructionProblem, res: SolveResult, auto: dict | None
         err = np.where(err_n > 0, err_sum / np.maximum(err_n, 1), np.nan)
     # where the pose prior extrapolates, and limb depths from 2D with it (3D markers measure them)
     unfamiliar = unfamiliar_poses(problem, Q, model=judge) if getattr(problem, "markers", None) is None else None
-    if unfamiliar is not None:  # ... and with it an auto camera's focal length, which one view owes to the prior
+    if unfamiliar is not None and not decided_by_keyframes(problem):  # ... and an auto focal length, owed to the prior
         auto = doubt_focal(auto, unfamiliar.share, limit=SWITCH_SHARE,
                            broader=problem.weights.pose_prior_model if judge else None)
     ident = proportions_identifiability(problem, Q, g) if identify else getattr(res, "identifiability", None)

@@ -98,7 +98,7 @@ def _solve(run: Run) -> str:
             if getattr(run.problem, "measured_lengths", None):
                 what += f", {len(run.problem.measured_lengths)} limb lengths measured from the tracks"
         if run.yield_at_start:  # the start is the keyframes' poses: the data's own, before any compromise
-            run.problem, run.conflict = adapt_prior(run.problem, q0, run.problem.g0)
+            run.problem, run.conflict = adapt_prior(run.problem, q0, run.problem.g0, keyframes=True)
             if run.conflict is not None and run.conflict.conflicting:
                 what += f", pose prior adapted to the keyframes on {len(run.conflict.conflicting)} joint(s)"
         run.res = solve(run.problem, q0, run.options, run.callback, active=run.problem.active, g0=run.problem.g0)

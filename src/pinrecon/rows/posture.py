@@ -100,6 +100,8 @@ class PosePrior(Posture):
     """
 
     LOSSES = ("huber", "cauchy")
+    #: adapted to 3D keyframes' poses (:func:`pinrecon.prior_yield.adapt_prior`), which decide the poses
+    decided_by_keyframes = False
 
     def __init__(self, figure, n_frames, q_ref, sigma, qcorr, cov, scale, active=None, k=None, loss="huber",
                  quantiles=None, mixture=None):
