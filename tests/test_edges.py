@@ -258,7 +258,7 @@ def test_joint_angle_panels_are_named_anatomically(human):
     figure's own keypoints."""
     import pinocchio as pin
 
-    from pinrecon.viz.plots import joint_title
+    from pinrecon.anatomy import joint_title
 
     assert joint_title(human, "left_knee_Z") == "left knee flexion/extension"
     assert joint_title(human, "right_hip_X") == "right hip abduction/adduction"

@@ -140,7 +140,7 @@ def test_file_size(name):
 LAYERS = [
     ("base", ["pinrecon.errors", "pinrecon._resources", "pinrecon.rotations", "pinrecon.io", "pinrecon.io.atomic",
               "pinrecon.io.jsonfile", "pinrecon.io.fields", "pinrecon.io.track_arrays", "pinrecon.kinematics", "pinrecon.datasets"]),
-    ("domain", ["pinrecon.figure_files", "pinrecon.figure", "pinrecon.figure_bvh", "pinrecon.cameras", "pinrecon.floor", "pinrecon.tracks", "pinrecon.lifted", "pinrecon.lifter", "pinrecon.layouts",
+    ("domain", ["pinrecon.anatomy", "pinrecon.figure_files", "pinrecon.figure", "pinrecon.figure_bvh", "pinrecon.cameras", "pinrecon.floor", "pinrecon.tracks", "pinrecon.lifted", "pinrecon.lifter", "pinrecon.layouts",
                 "pinrecon.proportions", "pinrecon.io.bvh_format", "pinrecon.io.bvh_urdf", "pinrecon.io.bvh",
                 "pinrecon.io.coco", "pinrecon.io.openpose", "pinrecon.io.openpose_json", "pinrecon.io.mmpose",
                 "pinrecon.io.people", "pinrecon.io.detections", "pinrecon.io.asf", "pinrecon.joint_limits",

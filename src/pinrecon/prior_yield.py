@@ -30,6 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .anatomy import joint_title
 from .banded import ActiveNormalEquations, ArrowheadFactor
 from .rows.posture import PosePrior
 from .solver import flatten_blocks, globals_of, solve
@@ -44,8 +45,8 @@ CONFLICT = 4.0
 @dataclass
 class PriorConflict:
     """Per row group of a :class:`PosePrior`: ``s2`` the variance factor, ``redundancy`` the share
-    of the group's rows the data decide (0 to 1), ``names`` the joints (a correlated row is named
-    by its joint in the whitening's order)."""
+    of the group's rows the data decide (0 to 1), ``names`` the joints' movements in anatomical
+    words (a correlated row is named by its joint in the whitening's order)."""
 
     s2: np.ndarray
     redundancy: np.ndarray
@@ -105,7 +106,7 @@ def prior_conflict(problem, x, g=None, *, probes: int = 16, seed: int = 0) -> Pr
     rd, rc = row.raw_rows(x)  # before reweighting: the loss is robust, the estimate is not
     s2 = np.concatenate([(rd**2).sum(axis=0), (rc**2).sum(axis=0)]) / red
     m = problem.figure.model
-    qname = {m.idx_qs[j]: m.names[j] for j in range(1, m.njoints) if m.nqs[j] == 1}
+    qname = {m.idx_qs[j]: joint_title(problem.figure, m.names[j]) for j in range(1, m.njoints) if m.nqs[j] == 1}
     names = [qname.get(int(row.qidx[k]), str(k)) for k in row.diag] + [qname.get(int(q), str(q)) for q in row.qcorr]
     return PriorConflict(s2, red / n, names, nd)
 

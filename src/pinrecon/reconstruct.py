@@ -457,7 +457,8 @@ def _mirrors(problem, init) -> bool:
 def _yield_at_start(problem, keyframes, init, seed, skip) -> bool:
     """Whether the pose prior is adapted to the start before the solve (stage ``yield``):
     when the start is the 3D keyframes' poses, dense enough that no search runs."""
-    return ("yield" not in skip and has_point_keyframes(keyframes) and _start_name(init, seed) == "auto"
+    start = _start_name(init, seed)
+    return ("yield" not in skip and has_point_keyframes(keyframes) and isinstance(start, str) and start == "auto"
             and not sparse_keyframes(problem))
 
 
