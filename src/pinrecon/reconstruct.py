@@ -380,7 +380,8 @@ def reconstruct(
         if floor is not None or contact is not None:
             raise InputError("the feet stage (floor, contact) needs one batch solve: pass window=0", field="window")
         return _reconstruct_windowed(problem, inputs, mode, calibrate, auto, _start_name(init, seed), init, span,
-                                     default, limit, options, callback)
+                                     default, limit, options, callback,
+                                     _yield_at_start(problem, keyframes, init, seed, skip))
     if _pose_unknown(auto, mode, camera):  # the keyframes placed the auto camera: its place refined too
         inputs["camera_pose"] = True
         problem = make_problem(**inputs, calibrate=mode)
@@ -406,9 +407,10 @@ def reconstruct(
 
 
 def _reconstruct_windowed(problem, inputs, mode, calibrate, auto, start, init, span, default, limit, options,
-                          callback) -> Result:
+                          callback, adapt=False) -> Result:
     """:func:`reconstruct` of a long clip in windows of ``span`` frames (:mod:`pinrecon.windowed`),
-    solved again with the broader prior when the default does not know the clip."""
+    solved again with the broader prior when the default does not know the clip; ``adapt``: each
+    window's prior adapted to its keyframes instead (the stage ``yield``)."""
     import time
 
     t0 = time.perf_counter()
@@ -418,9 +420,10 @@ def _reconstruct_windowed(problem, inputs, mode, calibrate, auto, start, init, s
         # windows measure no lengths: the default without 3D information stays the figure's own
         mode = "camera" if auto is not None else "none"
         problem = make_problem(**inputs, calibrate=mode)
-    res = solve_windowed(problem, start, options, callback, window=span, mirrors=_mirrors(problem, init))
+    res = solve_windowed(problem, start, options, callback, window=span, mirrors=_mirrors(problem, init),
+                         adapt_prior=adapt)
     result = _package(problem, res, auto, identify=False)
-    switch = None if default is None else broader_prior(default, "auto", result.extras, share=limit)
+    switch = None if default is None or adapt else broader_prior(default, "auto", result.extras, share=limit)
     if switch is not None:
         weights = replace(inputs["weights"], pose_prior_model=switch[0])
         problem = make_problem(**{**inputs, "weights": weights}, calibrate=mode)

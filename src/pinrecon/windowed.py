@@ -48,7 +48,9 @@ import numpy as np
 from .errors import InputError
 from .faults import FaultReport, fault_stage
 from .identifiability import proportions_identifiability
+from .prior_yield import adapt_prior as adapt_to_keyframes
 from .problem import make_problem
+from .rows.posture import PosePrior
 from .solver import SolveResult, SolverOptions, solve
 from .starts import initial_trajectory
 from .starts.mirrors import MirrorStage, mirror_stage
@@ -124,7 +126,7 @@ def window_plan(n_frames: int, window: int, overlap: int, unit: int = 1) -> list
 
 def solve_windowed(problem, start="auto", options: SolverOptions | None = None, callback=None, *,
                    window: int = DEFAULT_WINDOW, overlap: int | None = None, faults: bool = True,
-                   turns: bool = True, mirrors: bool = False) -> SolveResult:
+                   turns: bool = True, mirrors: bool = False, adapt_prior: bool = False) -> SolveResult:
     """Solve ``problem`` (a :class:`~pinrecon.problem.ReconstructionProblem` from
     :func:`~pinrecon.problem.make_problem`) window by window; see the module docstring.
 
@@ -133,7 +135,9 @@ def solve_windowed(problem, start="auto", options: SolverOptions | None = None, 
     :data:`DEFAULT_OVERLAP` (at most a third of the window). ``turns``, ``mirrors`` and
     ``faults``: the turn, mirror and fault stages in every window (``problem.reports["turns"]``,
     ``["mirrors"]`` and ``["faults"]``, merged over the windows; :func:`pinrecon.reconstruct`
-    asks for the mirror stage where it would run it after a batch solve). Returns a
+    asks for the mirror stage where it would run it after a batch solve). ``adapt_prior``: each
+    window's pose prior adapted to its start, the keyframes' poses (:func:`pinrecon.prior_yield.
+    adapt_prior`, as the batch solve's stage ``yield`` does at a dense-keyframe start). Returns a
     :class:`~pinrecon.solver.SolveResult` for the whole clip: the stitched trajectory,
     the whole problem's cost there, the iterations of all windows, and the globals
     solved on the leading stretch.
@@ -151,10 +155,15 @@ def solve_windowed(problem, start="auto", options: SolverOptions | None = None, 
     plan = window_plan(T, max(window, 2 * unit + 1), overlap, unit)
     X = np.empty((T, problem.figure.nq))
     g_solved = identified = None
-    if problem.g0 is not None:  # the globals, from a leading stretch, then held in every window
+    held_prior = None
+    if problem.g0 is not None or adapt_prior:  # the leading stretch: its start, then ...
         stretch = (min(T - 1, max(plan[0][1], CALIBRATION_FRAMES - 1)) // unit) * unit
         wp = _window_problem(problem, 0, stretch, free_globals=True, g_held=None)
         q0 = initial_trajectory(wp, start) if isinstance(start, str) else np.array(np.asarray(start, float)[: stretch + 1])
+    if adapt_prior:  # ... the pose prior adapted to it, then held in every window
+        wp = adapt_to_keyframes(wp, q0, wp.g0, keyframes=True)[0]
+        held_prior = next((r for r in wp.rows if isinstance(r, PosePrior) and r.decided_by_keyframes), None)
+    if problem.g0 is not None:  # ... the globals solved on it, then held in every window
         res = solve(wp, q0, options, callback, active=wp.active, g0=wp.g0)
         g_solved = res.g if res.g is not None else wp.g0
         identified = proportions_identifiability(wp, res.x, g_solved)  # what this stretch's data fix
@@ -171,6 +180,8 @@ def solve_windowed(problem, start="auto", options: SolverOptions | None = None, 
             q0 = initial_trajectory(wp, start)
         else:
             q0 = np.array(np.asarray(start, float)[a : e + 1])
+        if held_prior is not None:
+            wp = _with_prior(wp, held_prior)
         if done_until >= a:  # warm: the frames shared with the previous window
             q0[: done_until - a + 1] = X[a : done_until + 1]
         res = solve(wp, q0, options, callback, active=wp.active)
@@ -233,6 +244,14 @@ def _flat(blocks):
             yield from _flat(b)
         elif b is not None:
             yield b
+
+
+def _with_prior(wp, prior):
+    """The window's problem with ``prior`` (the leading stretch's adapted pose prior) for its own."""
+    i = next(i for i, r in enumerate(wp.rows) if isinstance(r, PosePrior))
+    out = wp.with_rows([], after=len(wp.rows))
+    out.rows[i] = prior.for_frames(wp.n_frames)
+    return out
 
 
 def _window_problem(problem, a: int, e: int, *, free_globals: bool, g_held):

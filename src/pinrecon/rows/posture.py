@@ -148,6 +148,12 @@ class PosePrior(Posture):
         for i, A in enumerate(self.As):
             self._Jf[i][np.ix_(nd + np.arange(dc), self._corr_col)] = A[:, self._corr_in]
 
+    def for_frames(self, n_frames: int) -> PosePrior:
+        """The same prior (as adapted) over ``n_frames`` frames (a window of the clip)."""
+        new = copy.copy(self)
+        new.frames = np.arange(int(n_frames))
+        return new
+
     def adapted(self, widen_diag, widen_corr, centre_diag=None, centre_corr=None) -> PosePrior:
         """A copy whose rows answer to a clip: each joint outside the correlated ones with its
         standard deviation times ``widen_diag[i]`` (in the order of ``diag``) and its mean moved
