@@ -93,6 +93,10 @@ def test_the_focal_length_the_prior_gives_is_not_claimed(your_video):
     assert "human_pose_mixture" in rep["message"]  # the clip was solved with the broader prior, named
 
 
+# slow (three solves of the real trial, ~85 s of CPU): the trial end to end is the module's
+# other tests, stability's copies are tests/test_stability.py's, Pose2Sim's calibration is read
+# in tests/test_calibration_io.py; .ci/run runs it
+@pytest.mark.slow
 def test_coco17_points_through_pose2sims_calibration_of_camera_1():
     """The trial's 17 COCO points (what a COCO-17 detector gives: no feet, no head top)
     through Pose2Sim's calibration of camera 1, against the four-camera triangulation, with
