@@ -27,6 +27,7 @@ import numpy as np
 from .contact import foot_keypoints
 from .errors import InputError
 from .identifiability import proportions_identifiability
+from .lifter import DEFAULT_LIFTER, attach_lifter
 from .problem import (
     ReconstructionProblem,
     Weights,
@@ -221,10 +222,12 @@ def build_problem(
     keypoints: Sequence[str] | None = None,
     calibrate: str | None = None,
     image_size=None,
+    lifter=DEFAULT_LIFTER,
 ) -> Setup:
     """The problem and its start, unsolved; see :func:`reconstruct` (solve it with
     ``solve(setup.problem, setup.q0, active=setup.active, g0=setup.g0)``)."""
     camera, mode, auto = _camera_and_mode(figure, tracks, camera, keyframes, calibrate, image_size)
+    tracks = attach_lifter(figure, tracks, camera, lifter, intrinsics=auto is None)
     problem = make_problem(figure, tracks, camera, keyframes, fps_out=fps_out, weights=weights, keypoints=keypoints,
                            calibrate=mode, camera_pose=_pose_unknown(auto, mode, camera))
     q0 = initial_trajectory(problem, _start_name(init, seed))
@@ -269,6 +272,7 @@ def reconstruct(
     lengths_from_tracks: bool = True,
     skip: Sequence[str] = (),
     progress: Callable | None = None,
+    lifter=DEFAULT_LIFTER,
 ) -> Result:
     """Reconstruct the figure's motion from 2D tracks seen by ``camera`` (or cameras).
 
@@ -350,6 +354,10 @@ def reconstruct(
     skip : names of stages to switch off (:data:`pinrecon.stages.STAGES`: ``prior``,
         ``turns``, ``mirrors``, ``faults``, ``focal``, ``feet``); the start and the solve always run.
     progress : called with each stage's name as it starts (the CLI's labelled progress).
+    lifter : pinrecon's own 2D-to-3D lifter as lifted-pose rows for one camera's tracks that
+        carry no 3D cues (:func:`pinrecon.lifter.attach_lifter`): ``"auto"`` (the shipped
+        weights, for the generic human), ``"none"``, or a weights file; default
+        :data:`pinrecon.lifter.DEFAULT_LIFTER` (``docs/lifted.md``).
 
     Returns
     -------
@@ -367,6 +375,7 @@ def reconstruct(
     floor, contact = (None, None) if off else (floor, contact)
     camera, mode, auto = _camera_and_mode(figure, tracks, camera, keyframes, calibrate, image_size,
                                           lengths_from_tracks=bool(lengths_from_tracks))
+    tracks = attach_lifter(figure, tracks, camera, lifter, intrinsics=auto is None)
     default = prior_for(figure, "auto") if _may_broaden(figure, weights, init) else None
     if default is not None:  # the default prior named; a broader one when it does not know the clip
         weights = replace(weights or Weights(), pose_prior_model=default)
