@@ -153,7 +153,7 @@ def test_attach_lifter_puts_the_lifters_depths_on_the_detections_rays():
     detection), and ``"none"`` leaves the tracks as they were."""
     from pinrecon.lifter import attach_lifter
 
-    tracks, cam, _, names = _short_held_out()
+    tracks, cam, _, _ = _short_held_out()
     fig = pr.Figure.human()
     assert attach_lifter(fig, tracks, cam, "none") is tracks
     assert attach_lifter(fig, tracks, cam, None) is tracks
