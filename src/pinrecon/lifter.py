@@ -47,6 +47,7 @@ __all__ = [
     "lift",
     "load_lifter",
     "on_rays",
+    "resolve_lifter",
 ]
 
 #: the lifter's points, in its input and output order
@@ -62,8 +63,9 @@ LIMB_LENGTH_M = 0.40
 CONFIDENCE_SIGMA_M = 0.10
 #: ``lifter=`` values besides a weights file: the shipped weights, or none
 LIFTERS = ("auto", "none")
-#: what ``reconstruct`` does without a ``lifter=`` (measured: bench/README.md, ``bench_lifter.py``)
-DEFAULT_LIFTER = "none"
+#: what ``reconstruct`` does without a ``lifter=``: the shipped weights, joining with the broader
+#: pose prior where the default does not know the clip (measured: bench/README.md, ``bench_lifter.py``)
+DEFAULT_LIFTER = "auto"
 #: at least this many of :data:`BODY` tracked for the lifter to run by default
 MIN_BODY_POINTS = 8
 #: per-frame input channels: 12 x (x, y, confidence), centre velocity (2), camera cues (4)
@@ -296,6 +298,20 @@ def on_rays(lifted: Lifted, tracks, camera) -> Lifted:
     out[..., 2] = np.where(ok, Z if perspective else z, P[..., 2])
     conf = np.where(ok, np.minimum(lifted.confidence, np.clip(det, 0.0, 1.0)), lifted.confidence)
     return Lifted(out, list(lifted.names), conf, lifted.frame, lifted.source, lifted.camera)
+
+
+def resolve_lifter(lifter):
+    """``lifter`` as :func:`attach_lifter` takes it, a weights file read now (an InputError
+    naming the file and the layer when it is not a lifter's): ``"auto"``, ``"none"`` or a
+    :class:`LifterModel`."""
+    if lifter is None or lifter is False:
+        return "none"
+    if isinstance(lifter, LifterModel):
+        return lifter
+    text = str(lifter).strip()
+    if text.lower() in LIFTERS:
+        return text.lower()
+    return load_lifter(text)
 
 
 def attach_lifter(figure, tracks, camera, lifter="auto", *, intrinsics: bool = True):
