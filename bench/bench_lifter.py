@@ -57,7 +57,7 @@ import bench_real  # bench/ is the script's folder
 
 import pinrecon as pr
 from pinrecon import datasets, metrics
-from pinrecon.lifter import BODY, LIMB_LENGTH_M, lift, load_lifter
+from pinrecon.lifter import BODY, LIMB_LENGTH_M, attach_lifter, lift, load_lifter
 from pinrecon.synthetic import bundled_motion
 
 REPO = Path(__file__).resolve().parents[1]
@@ -102,10 +102,13 @@ def cmu_case(clip, azimuth):
     return tracks, cam, P[:, order]
 
 
-def run_map(tracks, cam, P_true, lifter="none", weight=None, **kw):
+def run_map(tracks, cam, P_true, lifter="none", weight=None, from_start=False, **kw):
     """``pinrecon.reconstruct`` (``Figure.human()``, no keyframes) of the case with ``lifter``
-    (``"none"``: today's default path; a weights file: its lifted-pose rows, at ``weight``)."""
+    (``"none"``: the path without the lifter; a weights file: its lifted-pose rows, at ``weight``,
+    joining with the broader prior as ``lifter="auto"`` does, or with ``from_start`` in every solve)."""
     tr = pr.Tracks(tracks.points, tracks.names, tracks.fps, tracks.confidence)
+    if from_start and lifter != "none":  # the rows in every solve, not only with the broader prior
+        tr, lifter = attach_lifter(pr.Figure.human(), tr, cam, lifter), "none"
     w = pr.Weights() if weight is None else pr.Weights(lifted=weight)
     t0 = time.perf_counter()
     with warnings.catch_warnings():
@@ -193,6 +196,9 @@ def main(argv=None):
     ap.add_argument("--no-pose2sim", action="store_true")
     ap.add_argument("--clips", nargs="*", default=list(SUBJECT), choices=list(SUBJECT),
                     help="CMU cases to score (default all: walk, run, spin, dance)")
+    ap.add_argument("--from-start", action="store_true",
+                    help="the MAP + lifter column with the lifter's rows in every solve (default: as reconstruct's "
+                    "default, joining with the broader prior where the default prior does not know the clip)")
     ap.add_argument("--weight", type=float, help="Weights.lifted of the MAP with the lifter (default: Weights' own)")
     a = ap.parse_args(argv)
     from provenance import provenance
@@ -243,7 +249,9 @@ def main(argv=None):
     if a.map:
         print("\nThe MAP (pinrecon.reconstruct, Figure.human(), the true camera, no keyframes): today's default path "
               "(lifter='none') and with the fold's lifter (lifter=FILE: its lifted-pose rows"
-              + (f", Weights.lifted {a.weight:g}" if a.weight is not None else "") + "); the lifter alone beside them\n")
+              + (f", Weights.lifted {a.weight:g}" if a.weight is not None else "")
+              + (", in every solve" if a.from_start else ", joining with the broader prior as by default")
+              + "); the lifter alone beside them\n")
         print("| clip | angle | fold | lifter alone PA-MPJPE (mm) / flips (%) | MAP today PA-MPJPE (mm) / flips (%) "
               "| MAP + lifter PA-MPJPE (mm) / flips (%) | time today / with lifter (s) |")
         print("|---|---:|---|---|---|---|---|")
@@ -254,9 +262,9 @@ def main(argv=None):
                 for az in a.angles:
                     tracks, cam, P = cases.get((clip, az)) or cmu_case(clip, az)
                     alone = score_lifted(lift(tracks, cam, model=models[fold]), P, cam)
-                    d = run_map(tracks, cam, P)
-                    w = run_map(tracks, cam, P, str(fold_path(a.folds, fold)), a.weight)
-                    assert w["lifted"] and not d["lifted"]
+                    d = run_map(tracks, cam, P)  # lifter="none"
+                    w = run_map(tracks, cam, P, str(fold_path(a.folds, fold)), a.weight, a.from_start)
+                    assert not d["lifted"]
                     print(f"| {CLIP_NAME[clip]} | {az:.0f} | {fold} | {alone['pa']:.1f} / {alone['flips']:.1f} "
                           f"| {d['pa']:.1f} / {d['flips']:.1f} | {w['pa']:.1f} / {w['flips']:.1f} "
                           f"| {d['time']:.0f} / {w['time']:.0f} |", flush=True)
