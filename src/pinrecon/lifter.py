@@ -64,7 +64,7 @@ CONFIDENCE_SIGMA_M = 0.10
 #: ``lifter=`` values besides a weights file: the shipped weights, or none
 LIFTERS = ("auto", "none")
 #: what ``reconstruct`` does without a ``lifter=``: the shipped weights, joining with the broader
-#: pose prior where the default does not know the clip (measured: bench/README.md, ``bench_lifter.py``)
+#: pose prior where the default does not know the clip (the prior stage's switch) (measured: bench/README.md, ``bench_lifter.py``)
 DEFAULT_LIFTER = "auto"
 #: at least this many of :data:`BODY` tracked for the lifter to run by default
 MIN_BODY_POINTS = 8

@@ -359,11 +359,12 @@ def reconstruct(
     lifter : pinrecon's own 2D-to-3D lifter as lifted-pose rows for one camera's tracks that
         carry no 3D cues (:func:`pinrecon.lifter.attach_lifter`): ``"auto"`` (the shipped
         weights, for the generic human), ``"none"``, or a weights file; default
-        :data:`pinrecon.lifter.DEFAULT_LIFTER` (``docs/lifted.md``). Where the default pose
-        prior may switch to its broader mixture (``weights`` above), the lifter joins with it,
-        for clips whose poses the default does not know (on the walk and run the default
-        prior beat the lifter; on Pose2Sim's real trial the lifter paid, ``bench_lifter.py``);
-        with ``skip=("prior",)``, a named prior or another figure, from the start.
+        :data:`pinrecon.lifter.DEFAULT_LIFTER` (``docs/lifted.md``). It joins when the default
+        pose prior switches to its broader mixture (``weights`` above: clips whose poses the
+        default does not know; on the walk and run the default prior beat the lifter, on
+        Pose2Sim's real trial the lifter paid, ``bench_lifter.py``), and not otherwise (a named
+        prior, no prior, a warm start, ``skip=("prior",)``); ``Tracks.lifted =
+        pinrecon.lifter.lift(tracks, camera)`` puts it in every solve.
 
     Returns
     -------
@@ -383,8 +384,7 @@ def reconstruct(
                                           lengths_from_tracks=bool(lengths_from_tracks))
     default = prior_for(figure, "auto") if _may_broaden(figure, weights, init) else None
     lift = functools.partial(attach_lifter, figure, camera=camera, lifter=resolve_lifter(lifter), intrinsics=auto is None)
-    joins = default is not None and "prior" not in skip  # the lifter joins with the broader prior
-    tracks = tracks if joins else lift(tracks)
+    joins = default is not None  # the lifter joins with the broader prior (the prior stage's switch)
     if default is not None:  # the default prior named; a broader one when it does not know the clip
         weights = replace(weights or Weights(), pose_prior_model=default)
     inputs = {"figure": figure, "tracks": tracks, "camera": camera, "keyframes": keyframes, "fps_out": fps_out,
