@@ -64,6 +64,7 @@ def random_motion():
 
 
 def _solve(fig, tracks, cam, keys, **kw):
+    kw.setdefault("lifter", "none")  # the switch alone (pinrecon's lifter joins with it by default)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         return pr.reconstruct(fig, tracks, cam, keys, calibrate="none", floor="none", **kw)

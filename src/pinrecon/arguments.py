@@ -63,6 +63,11 @@ def add_reconstruct_options(r, *, inputs=None, camera_required: bool = True, fig
         r.add_argument("--lifted-frame", choices=["camera", "unknown"],
                        help="axes of --lifted: 'camera' (the lifters' own output) or 'unknown' (turned into other "
                        "axes)")
+    r.add_argument("--lifter", metavar="auto|none|FILE",
+                   help="pinrecon's own 2D-to-3D lifter as learned 3D cues (lifted-pose rows) for one camera's "
+                   "tracks that carry none: 'auto' (the shipped weights, for --figure human with the COCO-17 body "
+                   "points), 'none', or a weights file (tools/train_lifter.py); default: "
+                   "pinrecon.lifter.DEFAULT_LIFTER (docs/lifted.md)")
     r.add_argument("--fps-out", type=float, help="reconstruction rate (integer multiple of the tracks' rate)")
     r.add_argument("--seed", choices=["auto", "rest", "keyframes", "planarity", "hypotheses"],
                    help="the start (default auto: the multi-hypothesis start when keyframes are absent or sparse, "
@@ -127,7 +132,8 @@ def reconstruct_from_args(args, callback=None):
     kf = load_keyframes(args.keyframes) if args.keyframes else None
     opts = SolverOptions(max_iterations=args.max_iterations)
     kw = {"fps_out": args.fps_out, "weights": Weights(**weights_kwargs(args, WEIGHT_OPTIONS)), "options": opts,
-          "seed": args.seed, "calibrate": args.calibrate, "window": args.window, **feet_from_args(args)}
+          "seed": args.seed, "calibrate": args.calibrate, "window": args.window, **feet_from_args(args),
+          **({"lifter": args.lifter} if getattr(args, "lifter", None) is not None else {})}
     res = reconstruct(fig, tracks, cam, kf, callback=callback, skip=getattr(args, "skip", ()),
                       progress=getattr(callback, "stage", None), **kw)
     if stability_runs:

@@ -27,6 +27,7 @@ import numpy as np
 from .contact import foot_keypoints
 from .errors import InputError
 from .identifiability import proportions_identifiability
+from .lifter import DEFAULT_LIFTER, attach_lifter, resolve_lifter
 from .problem import (
     ReconstructionProblem,
     Weights,
@@ -221,10 +222,14 @@ def build_problem(
     keypoints: Sequence[str] | None = None,
     calibrate: str | None = None,
     image_size=None,
+    lifter="none",
 ) -> Setup:
     """The problem and its start, unsolved; see :func:`reconstruct` (solve it with
-    ``solve(setup.problem, setup.q0, active=setup.active, g0=setup.g0)``)."""
+    ``solve(setup.problem, setup.q0, active=setup.active, g0=setup.g0)``). ``lifter``
+    (``"auto"`` or a weights file) puts pinrecon's lifter's rows in from the start (reconstruct's
+    first solve has them only when its pose prior may not switch)."""
     camera, mode, auto = _camera_and_mode(figure, tracks, camera, keyframes, calibrate, image_size)
+    tracks = attach_lifter(figure, tracks, camera, lifter, intrinsics=auto is None)
     problem = make_problem(figure, tracks, camera, keyframes, fps_out=fps_out, weights=weights, keypoints=keypoints,
                            calibrate=mode, camera_pose=_pose_unknown(auto, mode, camera))
     q0 = initial_trajectory(problem, _start_name(init, seed))
@@ -269,6 +274,7 @@ def reconstruct(
     lengths_from_tracks: bool = True,
     skip: Sequence[str] = (),
     progress: Callable | None = None,
+    lifter=DEFAULT_LIFTER,
 ) -> Result:
     """Reconstruct the figure's motion from 2D tracks seen by ``camera`` (or cameras).
 
@@ -350,6 +356,15 @@ def reconstruct(
     skip : names of stages to switch off (:data:`pinrecon.stages.STAGES`: ``prior``,
         ``turns``, ``mirrors``, ``faults``, ``focal``, ``feet``); the start and the solve always run.
     progress : called with each stage's name as it starts (the CLI's labelled progress).
+    lifter : pinrecon's own 2D-to-3D lifter as lifted-pose rows for one camera's tracks that
+        carry no 3D cues (:func:`pinrecon.lifter.attach_lifter`): ``"auto"`` (the shipped
+        weights, for the generic human), ``"none"``, or a weights file; default
+        :data:`pinrecon.lifter.DEFAULT_LIFTER` (``docs/lifted.md``). It joins when the default
+        pose prior switches to its broader mixture (``weights`` above: clips whose poses the
+        default does not know; on the walk and run the default prior beat the lifter, on
+        Pose2Sim's real trial the lifter paid, ``bench_lifter.py``), and not otherwise (a named
+        prior, no prior, a warm start, ``skip=("prior",)``); ``Tracks.lifted =
+        pinrecon.lifter.lift(tracks, camera)`` puts it in every solve.
 
     Returns
     -------
@@ -368,6 +383,8 @@ def reconstruct(
     camera, mode, auto = _camera_and_mode(figure, tracks, camera, keyframes, calibrate, image_size,
                                           lengths_from_tracks=bool(lengths_from_tracks))
     default = prior_for(figure, "auto") if _may_broaden(figure, weights, init) else None
+    lift = functools.partial(attach_lifter, figure, camera=camera, lifter=resolve_lifter(lifter), intrinsics=auto is None)
+    joins = default is not None  # the lifter joins with the broader prior (the prior stage's switch)
     if default is not None:  # the default prior named; a broader one when it does not know the clip
         weights = replace(weights or Weights(), pose_prior_model=default)
     inputs = {"figure": figure, "tracks": tracks, "camera": camera, "keyframes": keyframes, "fps_out": fps_out,
@@ -379,7 +396,7 @@ def reconstruct(
         if floor is not None or contact is not None:
             raise InputError("the feet stage (floor, contact) needs one batch solve: pass window=0", field="window")
         return _reconstruct_windowed(problem, inputs, mode, calibrate, auto, _start_name(init, seed), init, span,
-                                     default, limit, options, callback)
+                                     default, limit, options, callback, lift if joins else None)
     if _pose_unknown(auto, mode, camera):  # the keyframes placed the auto camera: its place refined too
         inputs["camera_pose"] = True
         problem = make_problem(**inputs, calibrate=mode)
@@ -389,7 +406,7 @@ def reconstruct(
     run = Run(problem, inputs, mode, _start_name(init, seed), options, callback, auto, default_prior=default,
               lengths=bool(lengths_from_tracks) and _lengths_measurable(auto and auto["projection"]) and _cold_start(init),
               switch_limit=limit, mirrors=_mirrors(problem, init), floor=floor, contact=contact,
-              contact_settings=contact_settings, measure_lengths=_lengths_from_tracks)
+              contact_settings=contact_settings, measure_lengths=_lengths_from_tracks, lifter=lift if joins else None)
     reports = run_stages(run, skip, progress)
     # a clip solved again with the broader prior is judged by the default's clips (a fallback knows no poses)
     result = _package(run.problem, run.res, run.auto, judge=run.judge)
@@ -402,7 +419,7 @@ def reconstruct(
 
 
 def _reconstruct_windowed(problem, inputs, mode, calibrate, auto, start, init, span, default, limit, options,
-                          callback) -> Result:
+                          callback, lift=None) -> Result:
     """:func:`reconstruct` of a long clip in windows of ``span`` frames (:mod:`pinrecon.windowed`),
     solved again with the broader prior when the default does not know the clip."""
     import time
@@ -419,6 +436,8 @@ def _reconstruct_windowed(problem, inputs, mode, calibrate, auto, start, init, s
     switch = None if default is None else broader_prior(default, "auto", result.extras, share=limit)
     if switch is not None:
         weights = replace(inputs["weights"], pose_prior_model=switch[0])
+        if lift is not None:  # poses the default prior does not know: the lifter's cues join
+            inputs = {**inputs, "tracks": lift(inputs["tracks"])}
         problem = make_problem(**{**inputs, "weights": weights}, calibrate=mode)
         res = solve_windowed(problem, start, options, callback, window=span, mirrors=_mirrors(problem, init))
         result = _package(problem, res, auto, identify=False, judge=default)

@@ -15,7 +15,7 @@ changed). A stage that has nothing to do returns ``None`` and is reported as ski
            with one camera, the limbs' lengths measured from the tracks) and the batch solve
 ``prior``  the generic human's pose prior switched to its broader mixture and the clip solved
            again when more of its poses than :func:`pinrecon.unfamiliar.switch_share` are
-           unknown to the default
+           unknown to the default, pinrecon's lifter joining as lifted-pose rows (``lifter="auto"``)
 ``turns``  fast turns the solution holds a turn too few of, wound (warm re-solves)
 ``mirrors`` the limbs' spans mirrored where that lowers the MAP cost (with the broader prior)
 ``faults`` left/right swaps of the detector repaired (warm re-solve), outliers reported
@@ -72,6 +72,7 @@ class Run:
     contact: object = None
     contact_settings: object = None
     measure_lengths: Callable | None = None  # (problem, q0, start, inputs) -> (problem, q0)
+    lifter: Callable | None = None  # tracks -> tracks with a lifter's 3D cues, joined when the prior switches
     # what the stages leave for the result
     switch: tuple | None = None
     judge: str | None = None
@@ -112,6 +113,8 @@ def _prior(run: Run) -> str | None:
         return None
     run.caught = []  # the first solve's warnings are dropped
     run.inputs["weights"] = replace(run.inputs["weights"], pose_prior_model=switch[0])
+    if run.lifter is not None:  # poses the default prior does not know: the lifter's cues join
+        run.inputs["tracks"] = run.lifter(run.inputs["tracks"])
     run.problem = make_problem(**run.inputs, calibrate=run.mode)
     default, run.default_prior = run.default_prior, None
     _solve(run)
