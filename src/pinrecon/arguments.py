@@ -17,7 +17,7 @@ __all__ = ["add_reconstruct_options", "reconstruct_from_args", "figure_from_args
            "weights_kwargs", "pose_prior_weights"]
 
 #: the Weights keywords of reconstruct's options (those given)
-WEIGHT_OPTIONS = ("sigma_px", "acc_root_translation", "acc_root_rotation", "acc_joints", "sigma_limits", "loss")
+WEIGHT_OPTIONS = ("sigma_px", "acc_root_translation", "acc_root_rotation", "acc_joints", "sigma_limits", "loss", "lifted")
 
 
 def add_reconstruct_options(r, *, inputs=None, camera_required: bool = True, figure_required: bool = True) -> None:
@@ -76,6 +76,10 @@ def add_reconstruct_options(r, *, inputs=None, camera_required: bool = True, fig
     r.add_argument("--acc-root-rotation", type=float, help="smoothing: root angular acceleration sd, rad/s^2")
     r.add_argument("--acc-joints", type=float, help="smoothing: joint acceleration sd, rad/s^2")
     r.add_argument("--sigma-limits", type=float, help="joint-limit barrier sd, rad")
+    r.add_argument("--lifted-weight", dest="lifted", type=_non_negative, metavar="W",
+                   help="weight of the lifted-pose rows when the tracks carry a lifter's 3D (a video's MediaPipe "
+                   "world landmarks, --lifted): the inverse variance of a bone's unit-direction chord (default 25, "
+                   "docs/lifted.md); 0 turns them off")
     add_pose_prior_argument(r)
     r.add_argument("--max-iterations", type=int, default=100)
     r.add_argument("--skip", nargs="+", default=(), metavar="STAGE",
@@ -281,6 +285,16 @@ def _pose_prior(text: str):
         raise argparse.ArgumentTypeError(f"expected a positive number or 'none', got {text!r}") from None
     if not 0 < v < float("inf"):
         raise argparse.ArgumentTypeError(f"expected a positive number or 'none', got {text!r}")
+    return v
+
+
+def _non_negative(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not (v >= 0 and v < float("inf")):
+        raise argparse.ArgumentTypeError(f"must be 0 or a positive number, got {text!r}")
     return v
 
 

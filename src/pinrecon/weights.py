@@ -68,6 +68,10 @@ class Weights:
     lifted_loss, lifted_loss_scale : their robust loss (``"cauchy"``, ``"huber"``, ``"l2"``)
         on the chord, and its scale in chord units (0.5: about 29 degrees), so a bone the
         lifter got wrong is outvoted by the image and the other rows.
+    lifted_window_s : a lifter in axes of its own (``Lifted.frame == "unknown"``) gets one
+        rotation to the world per frame, fitted over a Gaussian window of this standard
+        deviation (seconds) around it, so a slow drift of its axes is followed; ``None``:
+        one rotation for the whole clip.
     root_group : group on which the root's constant-velocity prior is written,
         ``"R3xSO3"`` (world translation and orientation apart; default) or ``"SE3"``
         (the free flyer's screw motion), see :mod:`pinrecon.rows.smoothing`.
@@ -92,6 +96,7 @@ class Weights:
     lifted: float | None = 25.0
     lifted_loss: str = "cauchy"
     lifted_loss_scale: float = 0.5
+    lifted_window_s: float | None = None
 
     def __post_init__(self):
         for f in fields(self):

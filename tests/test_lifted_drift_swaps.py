@@ -1,0 +1,137 @@
+"""Lifted-pose rows (pinrecon.rows.lifted) when the lifter's axes drift (a rotation per frame
+fitted over a window) and when the fault stage exchanges a detector's left and right labels
+(the lifted pose's labels go with them), against ground truth built independently."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+from dense_blocks import dense_jacobian
+from scipy.spatial.transform import Rotation
+
+import pinrecon as pr
+from pinrecon.faults import repair_swaps
+from pinrecon.lifted import Lifted
+from pinrecon.reconstruct import build_problem
+from pinrecon.rows import State
+from pinrecon.rows.lifted import LiftedPose, lifted_bones, procrustes_rotation, windowed_rotations
+from pinrecon.synthetic import project_tracks, side_camera, smooth_motion
+
+
+def _drift(T):
+    """A rotation turning 20 degrees about a tilted axis over ``T`` frames, and its matrices."""
+    axis = np.array([0.2, 1.0, 0.1]) / np.linalg.norm([0.2, 1.0, 0.1])
+    return Rotation.from_rotvec(np.radians(20.0) * np.linspace(0, 1, T)[:, None] * axis).as_matrix()
+
+
+def test_windowed_rotations_follow_a_drift_one_rotation_does_not():
+    rng = np.random.default_rng(0)
+    T, B = 60, 14
+    L = rng.normal(size=(T, B, 3))
+    L /= np.linalg.norm(L, axis=-1, keepdims=True)
+    R_true = _drift(T)
+    D = np.einsum("tij,tbj->tbi", R_true, L) + 0.02 * rng.normal(size=L.shape)
+    w = rng.uniform(0.3, 1.0, (T, B))
+    R_win = windowed_rotations(np.arange(T), D, L, w, sigma=3.0)
+    err_win = np.degrees(Rotation.from_matrix(np.einsum("tij,tkj->tik", R_win, R_true)).magnitude())
+    R_one = procrustes_rotation(D, L, w)
+    err_one = np.degrees(Rotation.from_matrix(np.einsum("ij,tkj->tik", R_one, R_true)).magnitude())
+    assert err_win.max() < 2.5
+    assert err_one.max() > 8.0
+    assert np.allclose(np.linalg.det(R_win), 1.0)
+    # frames missing from the grid: the same rotations where the kernel sees the same frames
+    keep = np.r_[0:25, 30:T]
+    R_gap = windowed_rotations(keep, D[keep], L[keep], w[keep], sigma=3.0)
+    err_gap = np.degrees(Rotation.from_matrix(np.einsum("tij,tkj->tik", R_gap, R_true[keep])).magnitude())
+    assert err_gap.max() < 2.5
+
+
+def test_windowed_rows_jacobian_matches_finite_differences_rotations_held():
+    fig = pr.Figure.human()
+    T = 4
+    Q = smooth_motion(fig, T, 30.0, seed=2)
+    rng = np.random.default_rng(1)
+    pairs = lifted_bones(fig, fig.keypoint_names)
+    bones = np.array([[fig.keypoint_names.index(a), fig.keypoint_names.index(b)] for a, b in pairs])
+    P = fig.keypoints(Q)
+    v = P[:, bones[:, 1]] - P[:, bones[:, 0]] + 0.05 * rng.normal(size=(T, len(bones), 3))
+    L = np.einsum("tji,tbj->tbi", _drift(T), v / np.linalg.norm(v, axis=-1, keepdims=True))
+    row = LiftedPose(np.arange(T), bones, L, rng.uniform(0.3, 1.0, L.shape[:2]), None, loss="l2", window=1.5)
+    R = row.rotation(State(fig, Q, np.arange(T), False))
+    assert R.shape == (T, 3, 3)
+    b = row.evaluate(State(fig, Q, np.arange(T), True), True, R=R)
+    J = dense_jacobian([b], T, fig.nv)[0]
+    eps, cols = 1e-6, []
+    for t in range(T):
+        for i in range(fig.nv):
+            dv = np.zeros(fig.nv)
+            dv[i] = eps
+            Qp, Qm = Q.copy(), Q.copy()
+            Qp[t], Qm[t] = fig.integrate(Q[t], dv), fig.integrate(Q[t], -dv)
+            rp = row.evaluate(State(fig, Qp, np.arange(T), False), False, R=R).r.ravel()
+            rm = row.evaluate(State(fig, Qm, np.arange(T), False), False, R=R).r.ravel()
+            cols.append((rp - rm) / (2 * eps))
+    fd = np.stack(cols, axis=-1)
+    assert np.abs(J).max() > 0.1
+    assert np.abs(J - fd).max() <= 1e-6 * np.abs(J).max()
+
+
+@pytest.fixture(scope="module")
+def seen():
+    fig = pr.Figure.human()
+    Q = smooth_motion(fig, 12, 30.0, seed=3)
+    cam = side_camera(Q, 45.0)
+    tracks = project_tracks(fig, Q, cam, fps=30.0, noise_px=1.0, seed=3)
+    X = fig.keypoints(Q)[:, fig.keypoint_index(list(tracks.names))] @ cam.R.T
+    X = X + 0.03 * np.random.default_rng(4).normal(size=X.shape)
+    return fig, tracks, cam, X
+
+
+def _problem(fig, tracks, cam, X):
+    t = pr.Tracks(tracks.points.copy(), tracks.names, tracks.fps, tracks.confidence,
+                  lifted=Lifted(X.copy(), list(tracks.names), None, "camera", "test"))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return build_problem(fig, t, cam, seed="rest", calibrate="none").problem
+
+
+def _sides(names):
+    return [names.index(n.replace("left", "#").replace("right", "left").replace("#", "right")) for n in names]
+
+
+def test_a_repaired_swap_exchanges_the_lifted_labels_too(seen):
+    """The fault stage's repair of frames 3 and 7 leaves the same 2D and lifted rows as
+    tracks whose detector (and lifter) had labelled those frames the other way round."""
+    fig, tracks, cam, X = seen
+    names = list(tracks.names)
+    perm = _sides(names)
+    frames = np.array([3, 7])
+    uv_sw, X_sw = tracks.points.copy(), X.copy()
+    uv_sw[frames], X_sw[frames] = tracks.points[frames][:, perm], X[frames][:, perm]
+    swapped = pr.Tracks(uv_sw, names, tracks.fps, tracks.confidence)
+    problem = _problem(fig, swapped, cam, X_sw)
+    row = next(r for r in problem.rows if isinstance(r, LiftedPose))
+    L_sw = row.L.copy()
+    repair_swaps(problem, np.flatnonzero(np.isin(problem.measurement.frames, frames)))
+    expect = next(r for r in _problem(fig, tracks, cam, X).rows if isinstance(r, LiftedPose))
+    assert not np.allclose(L_sw[frames], expect.L[frames])  # the repair has something to do
+    np.testing.assert_allclose(row.L, expect.L, atol=1e-12)
+    np.testing.assert_allclose(row.w, expect.w)
+    np.testing.assert_array_equal(row.observed, expect.observed)
+    np.testing.assert_allclose(problem.measurement.uv_px, _problem(fig, tracks, cam, X).measurement.uv_px)
+
+
+def test_the_lifted_weight_option_reaches_the_weights():
+    from pinrecon.arguments import WEIGHT_OPTIONS, weights_kwargs
+    from pinrecon.cli import build_parser
+
+    base = ["reconstruct", "--figure", "human", "--tracks", "t.json", "--camera", "auto", "--out", "o"]
+    for flag, expect in ((["--lifted-weight", "50"], 50.0), (["--lifted-weight", "0"], 0.0), ([], 25.0)):
+        args = build_parser().parse_args(base + flag)
+        assert pr.Weights(**weights_kwargs(args, WEIGHT_OPTIONS)).lifted == expect
+    args = build_parser().parse_args(["video", "v.mp4", "--out", "o", "--lifted-weight", "12.5"])
+    assert weights_kwargs(args, WEIGHT_OPTIONS)["lifted"] == 12.5
+    with pytest.raises(SystemExit):
+        build_parser().parse_args(base + ["--lifted-weight", "-1"])
