@@ -48,7 +48,10 @@ def test_windowed_rotations_follow_a_drift_one_rotation_does_not():
     assert err_gap.max() < 2.5
 
 
-def test_windowed_rows_jacobian_matches_finite_differences_rotations_held():
+@pytest.mark.parametrize("lateral", [1.0, 0.3])
+def test_windowed_rows_jacobian_matches_finite_differences_rotations_held(lateral):
+    """Per-frame rotations held; with ``lateral`` < 1 the chord across the line of sight
+    weighted less (``forward`` a tilted viewing direction)."""
     fig = pr.Figure.human()
     T = 4
     Q = smooth_motion(fig, T, 30.0, seed=2)
@@ -58,7 +61,8 @@ def test_windowed_rows_jacobian_matches_finite_differences_rotations_held():
     P = fig.keypoints(Q)
     v = P[:, bones[:, 1]] - P[:, bones[:, 0]] + 0.05 * rng.normal(size=(T, len(bones), 3))
     L = np.einsum("tji,tbj->tbi", _drift(T), v / np.linalg.norm(v, axis=-1, keepdims=True))
-    row = LiftedPose(np.arange(T), bones, L, rng.uniform(0.3, 1.0, L.shape[:2]), None, loss="l2", window=1.5)
+    row = LiftedPose(np.arange(T), bones, L, rng.uniform(0.3, 1.0, L.shape[:2]), None, loss="l2", window=1.5,
+                     lateral=lateral, forward=[0.3, -0.2, 0.9])
     R = row.rotation(State(fig, Q, np.arange(T), False))
     assert R.shape == (T, 3, 3)
     b = row.evaluate(State(fig, Q, np.arange(T), True), True, R=R)
@@ -135,3 +139,24 @@ def test_the_lifted_weight_option_reaches_the_weights():
     assert weights_kwargs(args, WEIGHT_OPTIONS)["lifted"] == 12.5
     with pytest.raises(SystemExit):
         build_parser().parse_args(base + ["--lifted-weight", "-1"])
+
+
+def test_lateral_weight_scales_the_chord_across_the_line_of_sight_only():
+    """A bone turned across the line of sight costs ``lateral^2`` as much; one turned towards
+    the camera costs the same."""
+    fig = pr.Figure.human()
+    Q = smooth_motion(fig, 1, 30.0, seed=4)
+    a, b = fig.keypoint_index(["left_hip", "left_knee"])
+    P = fig.keypoints(Q)[0]
+    d = (P[b] - P[a]) / np.linalg.norm(P[b] - P[a])
+    f = np.cross(d, [1.0, 0.0, 0.0])
+    f /= np.linalg.norm(f)  # a viewing direction across the bone
+    side = np.cross(f, d)  # across both
+    for turn_axis, ratio in ((f, 0.25 ** 2), (side, None)):
+        L = Rotation.from_rotvec(0.3 * turn_axis).apply(d)[None, None]
+        costs = [LiftedPose([0], [[a, b]], L, [[1.0]], np.eye(3), loss="l2", lateral=lat, forward=f).evaluate(
+            State(fig, Q, np.arange(1), False), False).cost for lat in (1.0, 0.25)]
+        if ratio is not None:  # turned about the line of sight: all across it
+            assert np.isclose(costs[1] / costs[0], ratio)
+        else:  # turned towards the camera: mostly along it, costs more than lateral^2 of it
+            assert costs[1] / costs[0] > 0.5

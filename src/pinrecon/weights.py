@@ -72,6 +72,8 @@ class Weights:
         rotation to the world per frame, fitted over a Gaussian window of this standard
         deviation (seconds) around it, so a slow drift of its axes is followed; ``None``:
         one rotation for the whole clip.
+    lifted_lateral : weight of a bone chord's part across the camera's line of sight
+        relative to its part along it (1: the plain chord; the image measures the first).
     root_group : group on which the root's constant-velocity prior is written,
         ``"R3xSO3"`` (world translation and orientation apart; default) or ``"SE3"``
         (the free flyer's screw motion), see :mod:`pinrecon.rows.smoothing`.
@@ -97,6 +99,7 @@ class Weights:
     lifted_loss: str = "cauchy"
     lifted_loss_scale: float = 0.5
     lifted_window_s: float | None = None
+    lifted_lateral: float = 1.0
 
     def __post_init__(self):
         for f in fields(self):

@@ -134,12 +134,17 @@ class LiftedPose(RowKind):
         fit: one rotation per frame following a slow drift of the lifter's axes; ``None``:
         one rotation for the clip.
     view : the name of the camera whose image was lifted (:class:`pinrecon.problem.View`).
+    lateral, forward : the chord's part across the line of sight weighted by ``lateral``
+        (its part along ``forward``, the camera's unit viewing direction in world axes, by 1):
+        ``e' = lateral e + (1 - lateral) f f^T e``. The image measures a bone's direction
+        across the line of sight better than a lifter; what it cannot see is the bone's
+        lean towards or away from the camera. ``1`` (or no ``forward``): the plain chord.
     """
 
     name = "lifted"
 
     def __init__(self, frames, bones, directions, confidence, R_world_lifter=None, weight=25.0, loss="cauchy",
-                 loss_scale=0.5, irls=3, names=None, window=None, view=None):
+                 loss_scale=0.5, irls=3, names=None, window=None, view=None, lateral=1.0, forward=None):
         self.frames = np.asarray(frames, dtype=int)
         self.kinematic_frames = self.frames
         self.bones = np.asarray(bones, dtype=int).reshape(-1, 2)
@@ -157,6 +162,8 @@ class LiftedPose(RowKind):
         self.keypoints = np.unique(self.bones)
         self.window = None if window is None or not np.isfinite(window) else float(window)
         self.view = view
+        self.lateral = 1.0 if forward is None else float(lateral)
+        self.forward = None if forward is None else np.asarray(forward, float) / np.linalg.norm(forward)
 
     def swap_sides(self, frames, perm) -> None:
         """Exchange the lifter's left and right labels at the reconstruction frames
@@ -220,6 +227,13 @@ class LiftedPose(RowKind):
                 break
         return R
 
+    def _weigh(self, e):
+        """The chord ``e`` (..., 3) with its part across the line of sight weighted."""
+        if self.lateral == 1.0:
+            return e
+        f = self.forward
+        return self.lateral * e + (1.0 - self.lateral) * (e @ f)[..., None] * f
+
     def turned(self, R, L=None) -> np.ndarray:
         """The lifter's directions ``L`` (default: the rows', (N, B, 3)) in world axes by
         ``R`` (one (3, 3), or one per frame (N, 3, 3))."""
@@ -243,14 +257,14 @@ class LiftedPose(RowKind):
         v = P[:, self.bones[:, 1]] - P[:, self.bones[:, 0]]
         d = v / np.maximum(np.linalg.norm(v, axis=-1), 1e-12)[..., None]
         R = np.asarray(R)
-        s = np.sum((d - self.turned(R if R.ndim == 2 else R[pos], self.L[pos])) ** 2, axis=-1)
+        s = np.sum(self._weigh(d - self.turned(R if R.ndim == 2 else R[pos], self.L[pos])) ** 2, axis=-1)
         return np.where(have[:, None], 0.5 * self.w[pos] * self._robust(s)[0], 0.0)
 
     # -- rows -----------------------------------------------------------------------------
     def evaluate(self, state: State, jacobian: bool = True, R=None) -> RowBlock:
         d, length = self.directions(state)
         R = self.rotation(state, d) if R is None else R
-        e = d - self.turned(R)  # (N, B, 3)
+        e = self._weigh(d - self.turned(R))  # (N, B, 3)
         s = np.sum(e * e, axis=-1)
         rho, drho = self._robust(s)
         scale = np.sqrt(self.w * drho)  # (N, B)
@@ -262,6 +276,8 @@ class LiftedPose(RowKind):
         if jacobian:
             slots = state.slot[self.frames]
             A = (np.eye(3) - d[..., :, None] * d[..., None, :]) / length[..., None, None]
+            if self.lateral != 1.0:  # d e' / d e = lateral I + (1 - lateral) f f^T
+                A = self._weigh(np.swapaxes(A, -1, -2)).swapaxes(-1, -2)
             A = A * scale[..., None, None]  # (N, B, 3, 3)
             kps = np.r_[self.bones[:, 1], self.bones[:, 0]]
             AA = np.concatenate([A, -A], axis=1)
@@ -304,10 +320,12 @@ def lifted_rows(figure, views, weights) -> list[LiftedPose]:
         R = np.asarray(v.camera.R, float).T if lifted.frame == "camera" else None
         bones = np.array([[figure.keypoint_names.index(a), figure.keypoint_names.index(b)] for a, b in pairs])
         window_s = getattr(weights, "lifted_window_s", None)
+        lateral = getattr(weights, "lifted_lateral", 1.0)
         window = None if R is not None or not window_s else window_s * float(v.tracks.fps) * v.factor
         out.append(LiftedPose(rows * v.factor, bones, L[rows], conf[rows], R, weight=w, loss=weights.lifted_loss,
                               loss_scale=weights.lifted_loss_scale, names=[f"{a}-{b}" for a, b in pairs],
-                              window=window, view=v.name))
+                              window=window, view=v.name, lateral=lateral,
+                              forward=None if lateral == 1.0 else np.asarray(v.camera.R, float)[2]))
     return out
 
 
