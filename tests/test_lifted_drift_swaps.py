@@ -135,6 +135,8 @@ def test_the_lifted_weight_option_reaches_the_weights():
     for flag, expect in ((["--lifted-weight", "50"], 50.0), (["--lifted-weight", "0"], 0.0), ([], 25.0)):
         args = build_parser().parse_args(base + flag)
         assert pr.Weights(**weights_kwargs(args, WEIGHT_OPTIONS)).lifted == expect
+    args = build_parser().parse_args(base + ["--lifted", "x3d.npy"])  # a file, not the weight
+    assert "lifted" not in weights_kwargs(args, WEIGHT_OPTIONS)
     args = build_parser().parse_args(["video", "v.mp4", "--out", "o", "--lifted-weight", "12.5"])
     assert weights_kwargs(args, WEIGHT_OPTIONS)["lifted"] == 12.5
     with pytest.raises(SystemExit):
@@ -160,3 +162,45 @@ def test_lateral_weight_scales_the_chord_across_the_line_of_sight_only():
             assert np.isclose(costs[1] / costs[0], ratio)
         else:  # turned towards the camera: mostly along it, costs more than lateral^2 of it
             assert costs[1] / costs[0] > 0.5
+
+
+def test_lifted_lengths_rows_jacobians_match_finite_differences():
+    """d r / d v_t on the manifold and d r / d g (the proportions) by central differences."""
+    from pinrecon.proportions import Proportions
+    from pinrecon.rows.lifted import LENGTH_BONES, LiftedLengths
+
+    fig = pr.Figure.human()
+    T = 3
+    Q = smooth_motion(fig, T, 30.0, seed=5)
+    bones = [fig.keypoint_index([a, b]) for a, b in LENGTH_BONES]
+    target = np.random.default_rng(6).normal(size=len(bones))
+    row = LiftedLengths(np.arange(T), bones, target, 7.0)
+    props = Proportions.default(fig)
+    g = 0.1 * np.random.default_rng(7).normal(size=props.n)
+
+    def ev(QQ, gg, jac=False):
+        return row.evaluate(State(fig, QQ, np.arange(T), jac, g=gg, proportions=props), jac)
+
+    b = ev(Q, g, True)
+    J = dense_jacobian([b], T, fig.nv)[0]
+    eps, cols = 1e-6, []
+    for t in range(T):
+        for i in range(fig.nv):
+            dv = np.zeros(fig.nv)
+            dv[i] = eps
+            Qp, Qm = Q.copy(), Q.copy()
+            Qp[t], Qm[t] = fig.integrate(Q[t], dv), fig.integrate(Q[t], -dv)
+            cols.append((ev(Qp, g).r - ev(Qm, g).r).ravel() / (2 * eps))
+    fd = np.stack(cols, axis=-1)
+    assert np.abs(fd).max() > 0.1
+    assert np.abs(J - fd).max() <= 1e-6 * np.abs(fd).max()
+    fdg = np.stack([(ev(Q, g + eps * e).r - ev(Q, g - eps * e).r).ravel() / (2 * eps) for e in np.eye(props.n)], -1)
+    Jg = np.zeros_like(fdg)
+    Jg[:, b.gcols] = b.Jg.reshape(fdg.shape[0], -1)
+    assert np.abs(fdg).max() > 0.1
+    assert np.abs(Jg - fdg).max() <= 1e-6 * np.abs(fdg).max()
+    # the residual: the figure's centred log lengths minus the target's (computed here from the points)
+    lam = np.log(np.linalg.norm(np.diff(State(fig, Q, np.arange(T), False, g=g, proportions=props).points[
+        :, np.array(bones)], axis=2)[:, :, 0], axis=-1))
+    expect = np.sqrt(7.0) * (lam - lam.mean(1, keepdims=True) - (target - target.mean()))
+    np.testing.assert_allclose(ev(Q, g).r, expect, atol=1e-12)

@@ -17,7 +17,7 @@ __all__ = ["add_reconstruct_options", "reconstruct_from_args", "figure_from_args
            "weights_kwargs", "pose_prior_weights"]
 
 #: the Weights keywords of reconstruct's options (those given)
-WEIGHT_OPTIONS = ("sigma_px", "acc_root_translation", "acc_root_rotation", "acc_joints", "sigma_limits", "loss", "lifted")
+WEIGHT_OPTIONS = ("sigma_px", "acc_root_translation", "acc_root_rotation", "acc_joints", "sigma_limits", "loss")
 
 
 def add_reconstruct_options(r, *, inputs=None, camera_required: bool = True, figure_required: bool = True) -> None:
@@ -76,7 +76,7 @@ def add_reconstruct_options(r, *, inputs=None, camera_required: bool = True, fig
     r.add_argument("--acc-root-rotation", type=float, help="smoothing: root angular acceleration sd, rad/s^2")
     r.add_argument("--acc-joints", type=float, help="smoothing: joint acceleration sd, rad/s^2")
     r.add_argument("--sigma-limits", type=float, help="joint-limit barrier sd, rad")
-    r.add_argument("--lifted-weight", dest="lifted", type=_non_negative, metavar="W",
+    r.add_argument("--lifted-weight", type=_non_negative, metavar="W",
                    help="weight of the lifted-pose rows when the tracks carry a lifter's 3D (a video's MediaPipe "
                    "world landmarks, --lifted): the inverse variance of a bone's unit-direction chord (default 25, "
                    "docs/lifted.md); 0 turns them off")
@@ -320,8 +320,10 @@ def add_pose_prior_argument(parser) -> None:
 
 def weights_kwargs(args, names) -> dict:
     """The :class:`~pinrecon.Weights` keywords the command line gave: ``names`` (those not
-    None) and the pose-prior flags (:func:`pose_prior_weights`)."""
+    None), ``--lifted-weight`` and the pose-prior flags (:func:`pose_prior_weights`)."""
     out = {k: getattr(args, k) for k in names if getattr(args, k, None) is not None}
+    if getattr(args, "lifted_weight", None) is not None:  # --lifted-weight (--lifted is a file)
+        out["lifted"] = args.lifted_weight
     out.update(pose_prior_weights(args))
     return out
 

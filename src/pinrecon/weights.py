@@ -74,6 +74,9 @@ class Weights:
         one rotation for the whole clip.
     lifted_lateral : weight of a bone chord's part across the camera's line of sight
         relative to its part along it (1: the plain chord; the image measures the first).
+    lifted_lengths : the figure's proportions (its bones' log lengths about their mean)
+        pulled to the lifter's median ones over the clip with this standard deviation
+        (:class:`pinrecon.rows.lifted.LiftedLengths`); ``None``: not.
     root_group : group on which the root's constant-velocity prior is written,
         ``"R3xSO3"`` (world translation and orientation apart; default) or ``"SE3"``
         (the free flyer's screw motion), see :mod:`pinrecon.rows.smoothing`.
@@ -100,6 +103,7 @@ class Weights:
     lifted_loss_scale: float = 0.5
     lifted_window_s: float | None = None
     lifted_lateral: float = 1.0
+    lifted_lengths: float | None = None
 
     def __post_init__(self):
         for f in fields(self):
