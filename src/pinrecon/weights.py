@@ -68,12 +68,6 @@ class Weights:
     lifted_loss, lifted_loss_scale : their robust loss (``"cauchy"``, ``"huber"``, ``"l2"``)
         on the chord, and its scale in chord units (0.5: about 29 degrees), so a bone the
         lifter got wrong is outvoted by the image and the other rows.
-    lifted_window_s : a lifter in axes of its own (``Lifted.frame == "unknown"``) gets one
-        rotation to the world per frame, fitted over a Gaussian window of this standard
-        deviation (seconds) around it, so a slow drift of its axes is followed; ``None``:
-        one rotation for the whole clip.
-    lifted_lateral : weight of a bone chord's part across the camera's line of sight
-        relative to its part along it (1: the plain chord; the image measures the first).
     lifted_lengths : the figure's proportions (its bones' log lengths about their mean)
         pulled to the lifter's median ones over the clip with this standard deviation
         (:class:`pinrecon.rows.lifted.LiftedLengths`); ``None``: not.
@@ -101,8 +95,6 @@ class Weights:
     lifted: float | None = 25.0
     lifted_loss: str = "cauchy"
     lifted_loss_scale: float = 0.5
-    lifted_window_s: float | None = None
-    lifted_lateral: float = 1.0
     lifted_lengths: float | None = None
 
     def __post_init__(self):

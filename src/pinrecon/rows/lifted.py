@@ -49,7 +49,7 @@ import numpy as np
 from .base import RowBlock, RowKind, State, supported_columns
 
 __all__ = ["LiftedPose", "EXTRA_BONES", "lifted_bones", "lifted_rows", "procrustes_rotation",
-           "disagreement_extras", "disagreement_spans", "DISAGREEMENT_DEG", "nearest_rotation", "windowed_rotations",
+           "disagreement_extras", "disagreement_spans", "DISAGREEMENT_DEG",
            "LiftedLengths", "lifted_lengths_row", "LENGTH_BONES"]
 
 #: bones across the skeleton's tree (the tree's own bones come from the keypoint map's parents)
@@ -86,33 +86,9 @@ def procrustes_rotation(D: np.ndarray, L: np.ndarray, w: np.ndarray) -> np.ndarr
     """The rotation ``R`` (3, 3) minimising ``sum w |D - R L|^2`` over paired unit vectors
     ``D``, ``L`` (..., 3) with weights ``w`` (...) (Wahba's problem, by SVD)."""
     M = np.einsum("n,ni,nj->ij", np.ravel(w), np.reshape(D, (-1, 3)), np.reshape(L, (-1, 3)))
-    return nearest_rotation(M)
-
-
-def nearest_rotation(M: np.ndarray) -> np.ndarray:
-    """The rotations (..., 3, 3) maximising ``trace(R^T M)`` for matrices ``M`` (..., 3, 3)
-    (the polar factor with its determinant forced to +1: Wahba's solution, by SVD)."""
     U, _, Vt = np.linalg.svd(M)
-    det = np.sign(np.linalg.det(U @ Vt))
-    det = np.where(det == 0, 1.0, det)
-    return (U * np.stack([np.ones_like(det), np.ones_like(det), det], axis=-1)[..., None, :]) @ Vt
-
-
-def windowed_rotations(frames: np.ndarray, D: np.ndarray, L: np.ndarray, w: np.ndarray, sigma: float) -> np.ndarray:
-    """One rotation per frame (N, 3, 3): frame ``n``'s minimises ``sum_m k(f_m - f_n) sum_b
-    w_mb |D_mb - R L_mb|^2`` with ``k`` a Gaussian of standard deviation ``sigma`` frames
-    over the frames ``frames`` (N,): a rotation that follows a slow drift of the lifter's
-    axes. ``D``, ``L`` (N, B, 3) unit vectors, ``w`` (N, B) weights."""
-    from scipy.ndimage import gaussian_filter1d
-
-    frames = np.asarray(frames, int)
-    M = np.einsum("nb,nbi,nbj->nij", w, D, L)
-    if not len(frames):
-        return M
-    dense = np.zeros((frames[-1] - frames[0] + 1, 3, 3))
-    dense[frames - frames[0]] = M
-    dense = gaussian_filter1d(dense, float(sigma), axis=0, mode="constant", truncate=3.0)
-    return nearest_rotation(dense[frames - frames[0]])
+    S = np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt)) or 1.0])
+    return U @ S @ Vt
 
 
 class LiftedPose(RowKind):
@@ -131,21 +107,13 @@ class LiftedPose(RowKind):
     loss : ``"cauchy"``, ``"huber"`` or ``"l2"``; ``loss_scale`` its scale in chord units.
     irls : Procrustes re-solves with the robust weights (an estimated rotation only).
     names : (B,) labels of the bones (``"left_elbow-left_wrist"``), for reports.
-    window : standard deviation (frames) of the Gaussian window of an estimated rotation's
-        fit: one rotation per frame following a slow drift of the lifter's axes; ``None``:
-        one rotation for the clip.
     view : the name of the camera whose image was lifted (:class:`pinrecon.problem.View`).
-    lateral, forward : the chord's part across the line of sight weighted by ``lateral``
-        (its part along ``forward``, the camera's unit viewing direction in world axes, by 1):
-        ``e' = lateral e + (1 - lateral) f f^T e``. The image measures a bone's direction
-        across the line of sight better than a lifter; what it cannot see is the bone's
-        lean towards or away from the camera. ``1`` (or no ``forward``): the plain chord.
     """
 
     name = "lifted"
 
     def __init__(self, frames, bones, directions, confidence, R_world_lifter=None, weight=25.0, loss="cauchy",
-                 loss_scale=0.5, irls=3, names=None, window=None, view=None, lateral=1.0, forward=None):
+                 loss_scale=0.5, irls=3, names=None, view=None):
         self.frames = np.asarray(frames, dtype=int)
         self.kinematic_frames = self.frames
         self.bones = np.asarray(bones, dtype=int).reshape(-1, 2)
@@ -161,10 +129,7 @@ class LiftedPose(RowKind):
         self.loss, self.loss_scale, self.irls = loss, float(loss_scale), int(irls)
         self.names = list(names) if names is not None else [f"{a}-{b}" for a, b in self.bones]
         self.keypoints = np.unique(self.bones)
-        self.window = None if window is None or not np.isfinite(window) else float(window)
         self.view = view
-        self.lateral = 1.0 if forward is None else float(lateral)
-        self.forward = None if forward is None else np.asarray(forward, float) / np.linalg.norm(forward)
 
     def swap_sides(self, frames, perm) -> None:
         """Exchange the lifter's left and right labels at the reconstruction frames
@@ -218,34 +183,18 @@ class LiftedPose(RowKind):
             return self.R_fixed
         if d is None:
             d = self.directions(state)[0]
-        fit = (procrustes_rotation if self.window is None else
-               lambda D, L, w: windowed_rotations(self.frames, D, L, w, self.window))
-        R = fit(d, self.L, self.w)
+        R = procrustes_rotation(d, self.L, self.w)
         for _ in range(self.irls if self.loss != "l2" else 0):
-            s = np.sum((d - self.turned(R)) ** 2, axis=-1)
-            R, R_old = fit(d, self.L, self.w * self._robust(s)[1]), R
+            s = np.sum((d - self.L @ R.T) ** 2, axis=-1)
+            R, R_old = procrustes_rotation(d, self.L, self.w * self._robust(s)[1]), R
             if np.abs(R - R_old).max() < 1e-13:
                 break
         return R
 
-    def _weigh(self, e):
-        """The chord ``e`` (..., 3) with its part across the line of sight weighted."""
-        if self.lateral == 1.0:
-            return e
-        f = self.forward
-        return self.lateral * e + (1.0 - self.lateral) * (e @ f)[..., None] * f
-
-    def turned(self, R, L=None) -> np.ndarray:
-        """The lifter's directions ``L`` (default: the rows', (N, B, 3)) in world axes by
-        ``R`` (one (3, 3), or one per frame (N, 3, 3))."""
-        L = self.L if L is None else L
-        R = np.asarray(R)
-        return L @ R.T if R.ndim == 2 else np.einsum("nij,nbj->nbi", R, L)
-
     def angles_deg(self, state: State) -> np.ndarray:
         """(N, B) angle between the figure's bone and the lifter's (degrees), NaN where missing."""
         d, _ = self.directions(state)
-        e = np.linalg.norm(d - self.turned(self.rotation(state, d)), axis=-1)
+        e = np.linalg.norm(d - self.L @ self.rotation(state, d).T, axis=-1)
         return np.where(self.observed, np.degrees(2.0 * np.arcsin(np.clip(e / 2.0, 0.0, 1.0))), np.nan)
 
     def bone_costs(self, P, frames, R) -> np.ndarray:
@@ -257,15 +206,14 @@ class LiftedPose(RowKind):
         have = (self.frames[pos] == frames) if len(self.frames) else np.zeros(len(frames), bool)
         v = P[:, self.bones[:, 1]] - P[:, self.bones[:, 0]]
         d = v / np.maximum(np.linalg.norm(v, axis=-1), 1e-12)[..., None]
-        R = np.asarray(R)
-        s = np.sum(self._weigh(d - self.turned(R if R.ndim == 2 else R[pos], self.L[pos])) ** 2, axis=-1)
+        s = np.sum((d - self.L[pos] @ np.asarray(R).T) ** 2, axis=-1)
         return np.where(have[:, None], 0.5 * self.w[pos] * self._robust(s)[0], 0.0)
 
     # -- rows -----------------------------------------------------------------------------
     def evaluate(self, state: State, jacobian: bool = True, R=None) -> RowBlock:
         d, length = self.directions(state)
         R = self.rotation(state, d) if R is None else R
-        e = self._weigh(d - self.turned(R))  # (N, B, 3)
+        e = d - self.L @ R.T  # (N, B, 3)
         s = np.sum(e * e, axis=-1)
         rho, drho = self._robust(s)
         scale = np.sqrt(self.w * drho)  # (N, B)
@@ -277,8 +225,6 @@ class LiftedPose(RowKind):
         if jacobian:
             slots = state.slot[self.frames]
             A = (np.eye(3) - d[..., :, None] * d[..., None, :]) / length[..., None, None]
-            if self.lateral != 1.0:  # d e' / d e = lateral I + (1 - lateral) f f^T
-                A = self._weigh(np.swapaxes(A, -1, -2)).swapaxes(-1, -2)
             A = A * scale[..., None, None]  # (N, B, 3, 3)
             kps = np.r_[self.bones[:, 1], self.bones[:, 0]]
             AA = np.concatenate([A, -A], axis=1)
@@ -345,7 +291,7 @@ class LiftedLengths(RowKind):
         lam = np.log(n)
         sw = np.sqrt(self.weight)
         r = sw * (lam - lam.mean(axis=1, keepdims=True) - self.target)
-        N, B = r.shape
+        B = r.shape[1]
         J = Jg = gcols = None
         cols = np.arange(state.figure.nv)
         if jacobian:
@@ -413,9 +359,6 @@ def lifted_rows(figure, views, weights) -> list[LiftedPose]:
             continue
         R = np.asarray(v.camera.R, float).T if lifted.frame == "camera" else None
         bones = np.array([[figure.keypoint_names.index(a), figure.keypoint_names.index(b)] for a, b in pairs])
-        window_s = getattr(weights, "lifted_window_s", None)
-        lateral = getattr(weights, "lifted_lateral", 1.0)
-        window = None if R is not None or not window_s else window_s * float(v.tracks.fps) * v.factor
         sigma_len = getattr(weights, "lifted_lengths", None)
         if sigma_len:
             row = lifted_lengths_row(figure, lifted, rows * v.factor, sigma_len)
@@ -423,8 +366,7 @@ def lifted_rows(figure, views, weights) -> list[LiftedPose]:
                 out.append(row)
         out.append(LiftedPose(rows * v.factor, bones, L[rows], conf[rows], R, weight=w, loss=weights.lifted_loss,
                               loss_scale=weights.lifted_loss_scale, names=[f"{a}-{b}" for a, b in pairs],
-                              window=window, view=v.name, lateral=lateral,
-                              forward=None if lateral == 1.0 else np.asarray(v.camera.R, float)[2]))
+                              view=v.name))
     return out
 
 
@@ -458,16 +400,10 @@ def disagreement_extras(rows, state: State, n_frames: int, threshold_deg: float 
         "lifted_disagreement_deg": ang,
         "lifted_frame_deg": frame,
         "lifted_bones": np.array(names),
-        "lifted_rotation": np.stack([_one_rotation(r.rotation(state)) for r in rows]),
+        "lifted_rotation": np.stack([r.rotation(state) for r in rows]),
         "lifted_threshold_deg": np.float64(threshold_deg),
         "lifted_spans": disagreement_spans(ang, threshold_deg),
     }
-
-
-def _one_rotation(R) -> np.ndarray:
-    """A (3, 3) rotation, or the rotation nearest to the mean of per-frame ones (N, 3, 3)."""
-    R = np.asarray(R, float)
-    return R if R.ndim == 2 else nearest_rotation(R.mean(axis=0))
 
 
 def disagreement_spans(ang: np.ndarray, threshold_deg: float = DISAGREEMENT_DEG) -> np.ndarray:
