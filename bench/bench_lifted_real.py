@@ -143,6 +143,8 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--cameras", nargs="*", type=int, default=[1, 2, 3, 4])
     ap.add_argument("--weights", nargs="*", type=float, default=[0.0, 25.0])
+    ap.add_argument("--lifted-lengths", default="default",
+                    metavar="SIGMA|none", help="Weights.lifted_lengths (default: Weights' own)")
     ap.add_argument("--frame", choices=["camera", "unknown"], default="unknown")
     ap.add_argument("--cache", type=Path, default=datasets.cache_dir() / "bench_video")
     a = ap.parse_args(argv)
@@ -152,7 +154,8 @@ def main(argv=None):
     print("python bench/bench_lifted_real.py " + " ".join(argv if argv is not None else sys.argv[1:]))
     G = truth()
     calib = load_cameras(datasets.fetch(f"{TRIAL}/calibration/Calib_qualisys.toml"))
-    print(f"\nPose2Sim's balancing trial, each camera alone; lifted frame {a.frame!r}\n")
+    print(f"\nPose2Sim's balancing trial, each camera alone; lifted frame {a.frame!r}; Weights.lifted_lengths "
+          f"{pr.Weights().lifted_lengths if a.lifted_lengths == 'default' else a.lifted_lengths}\n")
     print("| camera | MediaPipe PA-MPJPE (mm) | MediaPipe MPJPE translated (mm) | MediaPipe bone variation (%) "
           "| Weights.lifted | pinrecon PA-MPJPE (mm) | pinrecon / MediaPipe | pinrecon MPJPE depth-aligned (mm) "
           "| pinrecon bone variation (%) | MediaPipe (s) | pinrecon (s) |")
@@ -167,11 +170,13 @@ def main(argv=None):
         true_cam = calib[cam - 1].camera
         mp_tr = translated((world[ok] - true_cam.t) @ true_cam.R, G[ok])  # camera axes, in the calibrated world
         for w in a.weights:
+            weights = pr.Weights(lifted=w) if a.lifted_lengths == "default" else pr.Weights(
+                lifted=w, lifted_lengths=None if a.lifted_lengths == "none" else float(a.lifted_lengths))
             t0 = time.perf_counter()
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
                 res = pr.reconstruct(pr.Figure.human(), tracks, "auto", image_size=image_size(cam, run),
-                                     weights=pr.Weights(lifted=w))
+                                     weights=weights)
             dt = time.perf_counter() - t0
             P = res.keypoints3d[:, res.figure.keypoint_index(COCO12)]
             pa = pa_mpjpe(P[ok], G[ok])
