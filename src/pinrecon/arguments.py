@@ -81,6 +81,10 @@ def add_reconstruct_options(r, *, inputs=None, camera_required: bool = True, fig
     r.add_argument("--acc-root-rotation", type=float, help="smoothing: root angular acceleration sd, rad/s^2")
     r.add_argument("--acc-joints", type=float, help="smoothing: joint acceleration sd, rad/s^2")
     r.add_argument("--sigma-limits", type=float, help="joint-limit barrier sd, rad")
+    r.add_argument("--lifted-weight", type=_non_negative, metavar="W",
+                   help="weight of the lifted-pose rows when the tracks carry a lifter's 3D (a video's MediaPipe "
+                   "world landmarks, --lifted): the inverse variance of a bone's unit-direction chord (default 25, "
+                   "docs/lifted.md); 0 turns them off")
     add_pose_prior_argument(r)
     r.add_argument("--max-iterations", type=int, default=100)
     r.add_argument("--skip", nargs="+", default=(), metavar="STAGE",
@@ -290,6 +294,16 @@ def _pose_prior(text: str):
     return v
 
 
+def _non_negative(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not (v >= 0 and v < float("inf")):
+        raise argparse.ArgumentTypeError(f"must be 0 or a positive number, got {text!r}")
+    return v
+
+
 def add_pose_prior_argument(parser) -> None:
     """Add ``--pose-prior``, ``--pose-prior-loss`` and ``--pose-prior-model`` to ``parser``."""
     parser.add_argument("--pose-prior", type=_pose_prior, default=argparse.SUPPRESS, metavar="SCALE|none",
@@ -312,8 +326,10 @@ def add_pose_prior_argument(parser) -> None:
 
 def weights_kwargs(args, names) -> dict:
     """The :class:`~pinrecon.Weights` keywords the command line gave: ``names`` (those not
-    None) and the pose-prior flags (:func:`pose_prior_weights`)."""
+    None), ``--lifted-weight`` and the pose-prior flags (:func:`pose_prior_weights`)."""
     out = {k: getattr(args, k) for k in names if getattr(args, k, None) is not None}
+    if getattr(args, "lifted_weight", None) is not None:  # --lifted-weight (--lifted is a file)
+        out["lifted"] = args.lifted_weight
     out.update(pose_prior_weights(args))
     return out
 
