@@ -43,6 +43,7 @@ from .result import StageReport
 from .solver import SolveResult, solve
 from .starts import initial_trajectory
 from .starts.camera_auto import settle_focal
+from .starts.lifted import has_lifted
 from .starts.mirrors import mirror_stage
 from .starts.turns import turn_stage
 from .unfamiliar import BROADER_PRIOR, broader_prior, unfamiliar_poses
@@ -129,6 +130,8 @@ def _warm(name: str, fn) -> Callable:
     def stage(run: Run) -> str | None:
         if name == "mirrors" and not run.mirrors:
             return None
+        if name == "mirrors" and has_lifted(run.problem):
+            return "skipped: the lifted cues decide the limbs' reflections"
         before = run.res
         run.res = fn(run.problem, run.res, run.options, run.callback)
         return "nothing kept" if run.res is before else "changed (warm re-solve kept)"
@@ -140,6 +143,8 @@ def _warm(name: str, fn) -> Callable:
 def _focal(run: Run) -> str | None:
     if not run.auto or run.auto.get("projection") != "perspective":
         return None
+    if has_lifted(run.problem):
+        return "skipped: with lifted cues the focal length's valley is not walked"
     before = run.res
     run.res, run.auto = settle_focal(run.problem, run.res, run.auto, options=run.options)
     if run.res is before:
