@@ -68,6 +68,7 @@ def synthetic_case(clip: str, frames: int, cues: bool):
 def real_case(cam: int, cues: bool):
     """Pose2Sim's trial seen by camera ``cam``: MediaPipe's tracks (cached by bench_video.py)."""
     import bench_video
+
     from pinrecon.io.calibration import load_cameras
 
     video = datasets.fetch(f"{TRIAL}/videos/cam{cam:02d}.mp4")

@@ -63,7 +63,7 @@ def test_lifted_start_takes_the_lifters_facing():
 
 
 def test_without_cues_the_auto_start_is_the_hypotheses_start():
-    fig, Q, cam, tracks = _case("camera")
+    fig, _, cam, tracks = _case("camera")
     tracks.lifted = None
     problem = build_problem(fig, tracks, cam, seed="rest").problem
     assert not has_lifted(problem)

@@ -12,16 +12,27 @@ changed). A stage that has nothing to do returns ``None`` and is reported as ski
 
 =========  ======================================================================================
 ``solve``  the start (the rest pose placed on the tracks, or the keyframes, or the named start;
-           with one camera, the limbs' lengths measured from the tracks) and the batch solve
+           :func:`pinrecon.starts.auto_start`: the multi-hypothesis search for one camera, the
+           lifted start when the tracks carry a lifter's 3D; with one camera, the limbs'
+           lengths measured from the tracks) and the batch solve
 ``prior``  the generic human's pose prior switched to its broader mixture and the clip solved
            again when more of its poses than :func:`pinrecon.unfamiliar.switch_share` are
            unknown to the default, pinrecon's lifter joining as lifted-pose rows (``lifter="auto"``)
 ``turns``  fast turns the solution holds a turn too few of, wound (warm re-solves)
-``mirrors`` the limbs' spans mirrored where that lowers the MAP cost (with the broader prior)
+``mirrors`` the limbs' spans mirrored where that lowers the MAP cost (with the broader prior);
+           skipped when the tracks carry a lifter's 3D
 ``faults`` left/right swaps of the detector repaired (warm re-solve), outliers reported
-``focal``  an auto camera's focal length carried down its cost valley
+``focal``  an auto camera's focal length carried down its cost valley; skipped when the tracks
+           carry a lifter's 3D
 ``feet``   feet on the ground: floor and contact rows, solved again warm
 =========  ======================================================================================
+
+With a lifter's 3D the search and the two stages no longer pay: on ``bench/bench_stages.py``
+(100 frames of walk, run, dances 05_02 and 05_11, and Pose2Sim's trial with MediaPipe's 3D) the
+mirror stage changed nothing on any clip (11-13 s on the trial and 05_11) and the focal
+settling changed PA-MPJPE by nothing (40 % of the trial's time); the lifted start matched the
+search within 2 mm for a third to a sixth of its time (``bench/README.md``, "The stages on the
+default monocular path").
 
 ``skip`` (names of :data:`STAGES` but ``solve``) switches stages off; the result stays valid.
 """

@@ -27,7 +27,7 @@ from ..solver import SolverOptions, solve
 from .rest import place_on_tracks, rest_start
 from .triangulation import normalized_coords
 
-__all__ = ["lifted_start", "has_lifted", "camera_rotation_from_tracks"]
+__all__ = ["camera_rotation_from_tracks", "has_lifted", "lifted_start"]
 
 #: how hard the inverse kinematics holds the chained targets (metres)
 SIGMA_TARGET_M = 0.05
