@@ -22,16 +22,15 @@ changed). A stage that has nothing to do returns ``None`` and is reported as ski
 ``mirrors`` the limbs' spans mirrored where that lowers the MAP cost (with the broader prior);
            skipped when the tracks carry a lifter's 3D
 ``faults`` left/right swaps of the detector repaired (warm re-solve), outliers reported
-``focal``  an auto camera's focal length carried down its cost valley; skipped when the tracks
-           carry a lifter's 3D
+``focal``  an auto camera's focal length carried down its cost valley (with a lifter's 3D, its
+           solves at most :data:`FOCAL_ITERATIONS_LIFTED` iterations each)
 ``feet``   feet on the ground: floor and contact rows, solved again warm
 =========  ======================================================================================
 
 With a lifter's 3D the search and the two stages no longer pay: on ``bench/bench_stages.py``
 (100 frames of walk, run, dances 05_02 and 05_11, and Pose2Sim's trial with MediaPipe's 3D) the
-mirror stage changed nothing on any clip (11-13 s on the trial and 05_11) and the focal
-settling changed PA-MPJPE by nothing (40 % of the trial's time); the lifted start matched the
-search within 2 mm for a third to a sixth of its time (``bench/README.md``, "The stages on the
+mirror stage changed nothing on any clip (11-13 s on the trial and 05_11); the lifted start
+matched the search within 2 mm for a third to a sixth of its time (``bench/README.md``, "The stages on the
 default monocular path").
 
 ``skip`` (names of :data:`STAGES` but ``solve``) switches stages off; the result stays valid.
@@ -51,13 +50,17 @@ from .errors import InputError
 from .faults import fault_stage, report_outliers
 from .problem import ReconstructionProblem, make_problem
 from .result import StageReport
-from .solver import SolveResult, solve
+from .solver import SolveResult, SolverOptions, solve
 from .starts import initial_trajectory
 from .starts.camera_auto import settle_focal
 from .starts.lifted import has_lifted
 from .starts.mirrors import mirror_stage
 from .starts.turns import turn_stage
 from .unfamiliar import BROADER_PRIOR, broader_prior, unfamiliar_poses
+
+#: the focal stage's solves with lifted cues: at most this many iterations each (bench_stages:
+#: the same PA-MPJPE and flips on the five clips, the stage 30 % shorter on Pose2Sim's trial)
+FOCAL_ITERATIONS_LIFTED = 10
 
 __all__ = ["STAGES", "StageReport", "Run", "run_stages", "check_skip"]
 
@@ -154,10 +157,11 @@ def _warm(name: str, fn) -> Callable:
 def _focal(run: Run) -> str | None:
     if not run.auto or run.auto.get("projection") != "perspective":
         return None
-    if has_lifted(run.problem):
-        return "skipped: with lifted cues the focal length's valley is not walked"
     before = run.res
-    run.res, run.auto = settle_focal(run.problem, run.res, run.auto, options=run.options)
+    options = run.options
+    if has_lifted(run.problem):  # the lifted cues hold the poses: a few steps settle each point of the valley
+        options = replace(options or SolverOptions(), max_iterations=FOCAL_ITERATIONS_LIFTED)
+    run.res, run.auto = settle_focal(run.problem, run.res, run.auto, options=options)
     if run.res is before:
         return "focal length at the bottom of its valley"
     report_outliers(run.problem, run.res)  # restarted down the valley: the outliers of where it ended
