@@ -11,7 +11,8 @@ by bench_video.py in ``<pinrecon cache>/bench_video/``). Each clip with lifted c
 synthetic clips carry bench_lifted's simulated lifter, 3 cm noise, limbs mirrored on 10 % of
 their frames; the real trial MediaPipe's own world landmarks) and without (``none``).
 
-Per clip and cue: the ``reconstruct`` call's frames/s, PA-MPJPE (mm) and flipped limb segments
+Per clip and cue: the ``reconstruct`` call's frames/s (wall clock, and per CPU second of this
+one-threaded process: on a shared machine the second is the one to compare), PA-MPJPE (mm) and flipped limb segments
 (%, bench_real's measure), and per stage its time and what the result scores with that stage
 alone switched off (``skip=(stage,)``; a stage that changed nothing is not run again: skipping
 it gives the same result). ``--variants`` adds whole-path variants: ``rest`` (the rest-pose
@@ -86,15 +87,15 @@ def real_case(cam: int, cues: bool):
 
 def run(case, **kwargs) -> dict:
     tracks, size, P_true, cam = case
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         res = pr.reconstruct(pr.Figure.human(), tracks, "auto", image_size=size, **kwargs)
-    dt = time.perf_counter() - t0
+    dt, cpu = time.perf_counter() - t0, time.process_time() - c0
     P = in_true_world(res.keypoints3d[:, res.figure.keypoint_index(COCO12)], res.cameras[0], cam)
     ok = np.isfinite(P_true).all(axis=(1, 2))
     segs = [(COCO12.index(a), COCO12.index(b)) for a, b in SEGMENTS]
-    return {"fps": tracks.T / dt, "time": dt, "pa": metrics.pa_mpjpe(P[ok], P_true[ok]),
+    return {"fps": tracks.T / dt, "cpu_fps": tracks.T / cpu, "time": dt, "pa": metrics.pa_mpjpe(P[ok], P_true[ok]),
             "flips": 100.0 * metrics.flip_rate(P[ok], P_true[ok], cam, segs), "stages": res.stages}
 
 
@@ -118,7 +119,7 @@ def main(argv=None):
     print(f"\nthe default monocular path (Figure.human(), camera 'auto', no keyframes); synthetic clips "
           f"{a.frames or 'all'} frames; real: Pose2Sim camera {a.cam}\n")
     names = list(STAGES)
-    print("| clip | lifted cues | frames/s | PA-MPJPE (mm) | flips (%) | "
+    print("| clip | lifted cues | frames/s (wall / CPU) | PA-MPJPE (mm) | flips (%) | "
           + " | ".join(f"{n}: s / PA off / flips off" for n in names) + " |")
     print("|---|---|---:|---:|---:|" + "---|" * len(names), flush=True)
     for clip in a.clips:
@@ -133,12 +134,12 @@ def main(argv=None):
                     continue
                 m = run(case, skip=(rep.name,))
                 cells.append(f"{rep.seconds:.1f} / {m['pa']:.1f} / {m['flips']:.1f}")
-            print(f"| {NAMES[clip]} | {cue} | {base['fps']:.1f} | {base['pa']:.1f} | {base['flips']:.1f} | "
+            print(f"| {NAMES[clip]} | {cue} | {base['fps']:.1f} / {base['cpu_fps']:.1f} | {base['pa']:.1f} | {base['flips']:.1f} | "
                   + " | ".join(cells) + " |", flush=True)
             for v in a.variants:
                 kw = {"seed": "rest"} if v == "rest" else {"lengths_from_tracks": False}
                 m = run(case, **kw)
-                print(f"| {NAMES[clip]} ({v}) | {cue} | {m['fps']:.1f} | {m['pa']:.1f} | {m['flips']:.1f} | "
+                print(f"| {NAMES[clip]} ({v}) | {cue} | {m['fps']:.1f} / {m['cpu_fps']:.1f} | {m['pa']:.1f} | {m['flips']:.1f} | "
                       + " | ".join(f"{r.seconds:.1f}" for r in m["stages"]) + " |", flush=True)
     print("\n'=': the stage changed nothing (switched off, the result is the same); "
           "'-': not run again (--no-ablate)")
