@@ -27,11 +27,11 @@ changed). A stage that has nothing to do returns ``None`` and is reported as ski
 ``feet``   feet on the ground: floor and contact rows, solved again warm
 =========  ======================================================================================
 
-With a lifter's 3D the search and the two stages no longer pay: on ``bench/bench_stages.py``
+With a lifter's 3D the search and the mirror stage no longer pay: on ``bench/bench_stages.py``
 (100 frames of walk, run, dances 05_02 and 05_11, and Pose2Sim's trial with MediaPipe's 3D) the
 mirror stage changed nothing on any clip (11-13 s on the trial and 05_11); the lifted start
-matched the search within 2 mm for a third to a sixth of its time (``bench/README.md``, "The stages on the
-default monocular path").
+matched the search within 2 mm on the synthetic clips and was 13.5 mm better on the trial, and
+the whole call ran 1.7-6 times faster (``bench/README.md``, ``bench_stages.py``).
 
 ``skip`` (names of :data:`STAGES` but ``solve``) switches stages off; the result stays valid.
 """
