@@ -38,6 +38,7 @@ the whole call ran 1.7-6 times faster (``bench/README.md``, ``bench_stages.py``)
 
 from __future__ import annotations
 
+import functools
 import time
 import warnings
 from collections.abc import Callable, Iterable
@@ -51,7 +52,7 @@ from .faults import fault_stage, report_outliers
 from .problem import ReconstructionProblem, make_problem
 from .result import StageReport
 from .solver import SolveResult, SolverOptions, solve
-from .starts import initial_trajectory
+from .starts import auto_start, initial_trajectory
 from .starts.camera_auto import settle_focal
 from .starts.lifted import has_lifted
 from .starts.mirrors import mirror_stage
@@ -88,6 +89,7 @@ class Run:
     contact_settings: object = None
     measure_lengths: Callable | None = None  # (problem, q0, start, inputs) -> (problem, q0)
     lifter: Callable | None = None  # tracks -> tracks with a lifter's 3D cues, joined when the prior switches
+    joined: bool = False  # the lifter joined at the prior's switch (the cue rules below are for given cues)
     # what the stages leave for the result
     switch: tuple | None = None
     judge: str | None = None
@@ -100,15 +102,22 @@ def _solve(run: Run) -> str:
     with warnings.catch_warnings(record=run.default_prior is not None) as caught:
         if run.default_prior is not None:
             warnings.simplefilter("always")
-        q0 = initial_trajectory(run.problem, run.start)
+        start = functools.partial(auto_start, lifted=False) if run.joined and run.start == "auto" else run.start
+        q0 = initial_trajectory(run.problem, start)
         what = "start and batch solve"
         if run.lengths and run.measure_lengths is not None:
-            run.problem, q0 = run.measure_lengths(run.problem, q0, run.start, run.inputs)
+            run.problem, q0 = run.measure_lengths(run.problem, q0, start, run.inputs)
             if getattr(run.problem, "measured_lengths", None):
                 what += f", {len(run.problem.measured_lengths)} limb lengths measured from the tracks"
         run.res = solve(run.problem, q0, run.options, run.callback, active=run.problem.active, g0=run.problem.g0)
     run.caught = list(caught or [])
     return f"{what}: {run.res.iterations} iterations, {run.res.status}"
+
+
+def _cued(run: Run) -> bool:
+    """Whether the tracks came with a lifter's 3D (measured in bench_stages; pinrecon's own
+    lifter joining at the prior's switch keeps the stages it was measured with)."""
+    return has_lifted(run.problem) and not run.joined
 
 
 def _reissue(run: Run) -> None:
@@ -130,6 +139,7 @@ def _prior(run: Run) -> str | None:
     run.inputs["weights"] = replace(run.inputs["weights"], pose_prior_model=switch[0])
     if run.lifter is not None:  # poses the default prior does not know: the lifter's cues join
         run.inputs["tracks"] = run.lifter(run.inputs["tracks"])
+        run.joined = True
     run.problem = make_problem(**run.inputs, calibrate=run.mode)
     default, run.default_prior = run.default_prior, None
     _solve(run)
@@ -144,7 +154,7 @@ def _warm(name: str, fn) -> Callable:
     def stage(run: Run) -> str | None:
         if name == "mirrors" and not run.mirrors:
             return None
-        if name == "mirrors" and has_lifted(run.problem):
+        if name == "mirrors" and _cued(run):
             return "skipped: the lifted cues decide the limbs' reflections"
         before = run.res
         run.res = fn(run.problem, run.res, run.options, run.callback)
@@ -159,7 +169,7 @@ def _focal(run: Run) -> str | None:
         return None
     before = run.res
     options = run.options
-    if has_lifted(run.problem):  # the lifted cues hold the poses: a few steps settle each point of the valley
+    if _cued(run):  # the lifted cues hold the poses: a few steps settle each point of the valley
         options = replace(options or SolverOptions(), max_iterations=FOCAL_ITERATIONS_LIFTED)
     run.res, run.auto = settle_focal(run.problem, run.res, run.auto, options=options)
     if run.res is before:
