@@ -138,8 +138,9 @@ def _prior(run: Run) -> str | None:
     run.caught = []  # the first solve's warnings are dropped
     run.inputs["weights"] = replace(run.inputs["weights"], pose_prior_model=switch[0])
     if run.lifter is not None:  # poses the default prior does not know: the lifter's cues join
+        given = getattr(run.inputs["tracks"], "lifted", None) is not None
         run.inputs["tracks"] = run.lifter(run.inputs["tracks"])
-        run.joined = True
+        run.joined = not given and getattr(run.inputs["tracks"], "lifted", None) is not None
     run.problem = make_problem(**run.inputs, calibrate=run.mode)
     default, run.default_prior = run.default_prior, None
     _solve(run)
