@@ -96,6 +96,12 @@ def lifter_scores(lifted, P_true, camera):
     return metrics.pa_mpjpe(X, P_true), 100.0 * metrics.flip_rate(X, P_true, camera, segs)
 
 
+def weights_of(weight, a) -> pr.Weights:
+    """``Weights.lifted = weight`` and ``--lifted-lengths`` when given."""
+    return pr.Weights(lifted=weight) if a.lifted_lengths == "default" else pr.Weights(
+        lifted=weight, lifted_lengths=None if a.lifted_lengths == "none" else float(a.lifted_lengths))
+
+
 def run(clip, weight, a):
     fig, q, fps = bundled_motion(clip)
     q = q[: a.frames] if a.frames else q
@@ -106,7 +112,7 @@ def run(clip, weight, a):
     t0 = time.perf_counter()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        res = pr.reconstruct(pr.Figure.human(), tracks, cam, weights=pr.Weights(lifted=weight))
+        res = pr.reconstruct(pr.Figure.human(), tracks, cam, weights=weights_of(weight, a))
     dt = time.perf_counter() - t0
     P_est = res.keypoints3d[:, res.figure.keypoint_index(tracks.names)]
     out = score(P_est, P, cam, list(tracks.names))
@@ -123,6 +129,8 @@ def main(argv=None):
     ap.add_argument("--angle", type=float, default=45.0)
     ap.add_argument("--noise-cm", type=float, default=3.0)
     ap.add_argument("--flip-share", type=float, default=0.1)
+    ap.add_argument("--lifted-lengths", default="default",
+                    metavar="SIGMA|none", help="Weights.lifted_lengths (default: Weights' own)")
     ap.add_argument("--frame", choices=["camera", "unknown"], default="camera")
     ap.add_argument("--seed", type=int, default=0)
     a = ap.parse_args(argv)
@@ -130,7 +138,8 @@ def main(argv=None):
 
     print(provenance())
     print("python bench/bench_lifted.py " + " ".join(argv if argv is not None else sys.argv[1:]))
-    print(f"\nlifter: frame {a.frame!r}, noise {a.noise_cm:g} cm, limbs mirrored on {100 * a.flip_share:g} % of "
+    print(f"\nWeights.lifted_lengths {pr.Weights().lifted_lengths if a.lifted_lengths == 'default' else a.lifted_lengths}"
+          f"; lifter: frame {a.frame!r}, noise {a.noise_cm:g} cm, limbs mirrored on {100 * a.flip_share:g} % of "
           f"their frames; {a.frames} frames, camera {a.angle:g} degrees from side-on, no keyframes\n")
     print("| clip | Weights.lifted | PA-MPJPE (mm) | flips (%) | MPJPE depth-aligned (mm) | lifter PA-MPJPE (mm) "
           "| lifter flips (%) | time (s) |")

@@ -26,16 +26,19 @@ four-camera triangulation (PA-MPJPE, flips along that camera's line of sight), s
 (nobody of that trial is in CMU's data).
 
 ``--map`` also runs ``pinrecon.reconstruct`` (``Figure.human()``, the true camera, no keyframes)
-on the CMU cases: today's default path, and, where the lifted-pose rows exist, the same with
-``tracks.lifted = lift(tracks, camera)`` from the fold's lifter (slow: about a minute a run).
+on the CMU cases: today's default path (``lifter="none"``) and the same with the fold's lifter
+(``lifter=FILE``, :func:`pinrecon.lifter.attach_lifter`), the lifter alone beside them; and on
+Pose2Sim's trial, each camera with the auto camera, with and without the shipped lifter (slow:
+up to minutes a run; ``--clips`` and ``--angles`` choose).
 
     OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 python bench/bench_lifter.py
     python bench/bench_lifter.py --folds ~/.cache/pinrecon/lifter-folds --map
+    python bench/bench_lifter.py --map --clips walk run --angles 45 --no-pose2sim
 """
 
 from __future__ import annotations
 
-import quick  # noqa: E402 - bench/quick.py: --quick, applied before pinrecon is imported
+import quick
 
 QUICK = quick.take(["--angles", "45", "--no-pose2sim"], cut=False)
 
@@ -54,7 +57,7 @@ import bench_real  # bench/ is the script's folder
 
 import pinrecon as pr
 from pinrecon import datasets, metrics
-from pinrecon.lifter import BODY, LIMB_LENGTH_M, lift, load_lifter
+from pinrecon.lifter import BODY, LIMB_LENGTH_M, attach_lifter, lift, load_lifter
 from pinrecon.synthetic import bundled_motion
 
 REPO = Path(__file__).resolve().parents[1]
@@ -99,26 +102,25 @@ def cmu_case(clip, azimuth):
     return tracks, cam, P[:, order]
 
 
-def has_lifted_rows() -> bool:
-    try:
-        import pinrecon.rows.lifted  # noqa: F401
-    except ImportError:
-        return False
-    return True
-
-
-def run_map(tracks, cam, P_true, lifted=None):
+def run_map(tracks, cam, P_true, lifter="none", weight=None, from_start=False, **kw):
+    """``pinrecon.reconstruct`` (``Figure.human()``, no keyframes) of the case with ``lifter``
+    (``"none"``: the path without the lifter; a weights file: its lifted-pose rows, at ``weight``,
+    joining with the broader prior as ``lifter="auto"`` does, or with ``from_start`` in every solve)."""
     tr = pr.Tracks(tracks.points, tracks.names, tracks.fps, tracks.confidence)
-    if lifted is not None:
-        tr.lifted = lifted
+    if from_start and lifter != "none":  # the rows in every solve, not only with the broader prior
+        tr, lifter = attach_lifter(pr.Figure.human(), tr, cam, lifter), "none"
+    w = pr.Weights() if weight is None else pr.Weights(lifted=weight)
     t0 = time.perf_counter()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        res = pr.reconstruct(pr.Figure.human(), tr, cam)
+        res = pr.reconstruct(pr.Figure.human(), tr, cam, lifter=lifter, weights=w, **kw)
     dt = time.perf_counter() - t0
     P = res.keypoints3d[:, res.figure.keypoint_index(list(BODY))]
     segs = [(BODY.index(a), BODY.index(b)) for a, b in bench_real.SEGMENTS]
-    return {"pa": metrics.pa_mpjpe(P, P_true), "flips": 100.0 * metrics.flip_rate(P, P_true, cam, segs), "time": dt}
+    if isinstance(cam, str):
+        return P, res, dt
+    return {"pa": metrics.pa_mpjpe(P, P_true), "flips": 100.0 * metrics.flip_rate(P, P_true, cam, segs), "time": dt,
+            "lifted": "lifted_bones" in res.extras}
 
 
 def time_per_1000(model, tracks, cam, repeat=3) -> float:
@@ -151,6 +153,40 @@ def pose2sim_rows(model):
     return rows
 
 
+def pose2sim_map_rows(path, weight=None, cameras=(1, 2, 3, 4)):
+    """Each camera's OpenPose tracks through ``reconstruct`` with the auto camera
+    (``Figure.human("auto", tracks=...)``, BODY_25B map, image 1088 x 1920): today's default
+    and with the lifter at ``path``; PA-MPJPE and flips against the triangulation."""
+    from pinrecon.io.calibration import load_cameras
+    from pinrecon.io.trc import load_trc
+
+    m = load_trc(datasets.fetch(TRC), names="pinrecon")
+    G = m.points[:, [m.names.index(n) for n in BODY]]
+    cams = load_cameras(datasets.fetch(CALIB))
+    segs = [(BODY.index(a), BODY.index(b)) for a, b in bench_real.SEGMENTS]
+    rows = []
+    for k in cameras:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            tracks = pr.load_tracks(datasets.folder(f"pose2sim-balancing/pose/cam0{k}_json"), fps=60.0)
+        cam = cams[k - 1].camera
+        out = {}
+        for label, lifter in (("default", "none"), ("lifter", str(path))):
+            w = pr.Weights() if weight is None or lifter == "none" else pr.Weights(lifted=weight)
+            t0 = time.perf_counter()
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                res = pr.reconstruct(pr.Figure.human("auto", tracks=tracks), tracks, "auto", image_size=(1088, 1920),
+                                     lifter=lifter, weights=w)
+            P = bench_real.in_true_world(res.keypoints3d[:, res.figure.keypoint_index(list(BODY))], res.cameras[0], cam)
+            out[label] = {"pa": metrics.pa_mpjpe(P, G), "flips": 100.0 * metrics.flip_rate(P, G, cam, segs),
+                          "time": time.perf_counter() - t0}
+        rows.append((f"cam0{k}", out))
+        print(f"| cam0{k} | {out['default']['pa']:.1f} | {out['default']['flips']:.1f} | {out['default']['time']:.0f} "
+              f"| {out['lifter']['pa']:.1f} | {out['lifter']['flips']:.1f} | {out['lifter']['time']:.0f} |", flush=True)
+    return rows
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--folds", type=Path, default=datasets.cache_dir() / "lifter-folds",
@@ -158,6 +194,12 @@ def main(argv=None):
     ap.add_argument("--angles", nargs="*", type=float, default=[45.0, 60.0])
     ap.add_argument("--map", action="store_true", help="also reconstruct (slow)")
     ap.add_argument("--no-pose2sim", action="store_true")
+    ap.add_argument("--clips", nargs="*", default=list(SUBJECT), choices=list(SUBJECT),
+                    help="CMU cases to score (default all: walk, run, spin, dance)")
+    ap.add_argument("--from-start", action="store_true",
+                    help="the MAP + lifter column with the lifter's rows in every solve (default: as reconstruct's "
+                    "default, joining with the broader prior where the default prior does not know the clip)")
+    ap.add_argument("--weight", type=float, help="Weights.lifted of the MAP with the lifter (default: Weights' own)")
     a = ap.parse_args(argv)
     from provenance import provenance
 
@@ -185,7 +227,7 @@ def main(argv=None):
         if fold not in models:
             continue
         held = set(models[fold].meta.get("held_out_subjects", []))
-        for clip in clips:
+        for clip in [c for c in clips if c in a.clips]:
             if SUBJECT[clip] not in held:
                 print(f"| {CLIP_NAME[clip]} | {fold} | fold saw subject {SUBJECT[clip]}: not scored | | | | | |")
                 continue
@@ -205,27 +247,27 @@ def main(argv=None):
                   f"| {m['flips']:.1f} | {max(r['flips'] for r in rows):.1f} | {target} | {1000 * m['ms']:.0f} |",
                   flush=True)
     if a.map:
-        rows_ok = has_lifted_rows()
-        print("\nThe MAP (Figure.human(), true camera, no keyframes): today's default path"
-              + (", and with the fold's lifter as lifted-pose rows" if rows_ok else
-                 " (no lifted-pose rows in this pinrecon: the lifter's rows are not run)") + "\n")
-        print("| clip | angle | default PA-MPJPE (mm) | default flips (%) | default time (s) "
-              "| with lifter PA-MPJPE (mm) | with lifter flips (%) | with lifter time (s) | fold |")
-        print("|---|---:|---:|---:|---:|---:|---:|---:|---|")
+        print("\nThe MAP (pinrecon.reconstruct, Figure.human(), the true camera, no keyframes): today's default path "
+              "(lifter='none') and with the fold's lifter (lifter=FILE: its lifted-pose rows"
+              + (f", Weights.lifted {a.weight:g}" if a.weight is not None else "")
+              + (", in every solve" if a.from_start else ", joining with the broader prior as by default")
+              + "); the lifter alone beside them\n")
+        print("| clip | angle | fold | lifter alone PA-MPJPE (mm) / flips (%) | MAP today PA-MPJPE (mm) / flips (%) "
+              "| MAP + lifter PA-MPJPE (mm) / flips (%) | time today / with lifter (s) |")
+        print("|---|---:|---|---|---|---|---|")
         for fold, clips in FOLDS.items():
             if fold == "shipped" or fold not in models:
                 continue
-            for clip in clips:
+            for clip in [c for c in clips if c in a.clips]:
                 for az in a.angles:
                     tracks, cam, P = cases.get((clip, az)) or cmu_case(clip, az)
-                    d = run_map(tracks, cam, P)
-                    if rows_ok:
-                        w = run_map(tracks, cam, P, lift(tracks, cam, model=models[fold]))
-                        tail = f"{w['pa']:.1f} | {w['flips']:.1f} | {w['time']:.0f}"
-                    else:
-                        tail = "- | - | -"
-                    print(f"| {CLIP_NAME[clip]} | {az:.0f} | {d['pa']:.1f} | {d['flips']:.1f} | {d['time']:.0f} | {tail} "
-                          f"| {fold} |", flush=True)
+                    alone = score_lifted(lift(tracks, cam, model=models[fold]), P, cam)
+                    d = run_map(tracks, cam, P)  # lifter="none"
+                    w = run_map(tracks, cam, P, str(fold_path(a.folds, fold)), a.weight, a.from_start)
+                    assert not d["lifted"]
+                    print(f"| {CLIP_NAME[clip]} | {az:.0f} | {fold} | {alone['pa']:.1f} / {alone['flips']:.1f} "
+                          f"| {d['pa']:.1f} / {d['flips']:.1f} | {w['pa']:.1f} / {w['flips']:.1f} "
+                          f"| {d['time']:.0f} / {w['time']:.0f} |", flush=True)
     if not a.no_pose2sim and "shipped" in models:
         print("\nPose2Sim's balancing trial (OpenPose BODY_25B, 100 frames), the shipped lifter alone, against the "
               "four-camera triangulation (issue target: PA-MPJPE mean <= 70 mm)\n")
@@ -237,6 +279,15 @@ def main(argv=None):
         for label in ("calibration", "no camera"):
             v = [r["pa"] for _, lab, r in rows if lab == label]
             print(f"| mean | {label} | {np.mean(v):.1f} | | |")
+        if a.map:
+            print("\nThe same trial through reconstruct (auto camera, Figure.human('auto', tracks=...): the BODY_25B "
+                  "map), today's default and with the shipped lifter (issue target: mean <= 70 mm)\n")
+            print("| camera | today PA-MPJPE (mm) | today flips (%) | today time (s) | with lifter PA-MPJPE (mm) "
+                  "| with lifter flips (%) | with lifter time (s) |")
+            print("|---|---:|---:|---:|---:|---:|---:|")
+            rows = pose2sim_map_rows(fold_path(a.folds, "shipped"), a.weight)
+            print(f"| mean | {np.mean([r['default']['pa'] for _, r in rows]):.1f} | | "
+                  f"| {np.mean([r['lifter']['pa'] for _, r in rows]):.1f} | | |")
 
 
 if __name__ == "__main__":

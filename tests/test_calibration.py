@@ -179,6 +179,10 @@ def test_cli_rejects_an_unknown_calibration(capsys):
     assert "invalid choice" in capsys.readouterr().err
 
 
+# slow (~25 s of CPU, five solves): the choice of the lengths mode is tested above
+# (default_calibrate) and the measured lengths' presence with the auto camera in
+# tests/test_camera_auto.py; .ci/run runs it
+@pytest.mark.slow
 def test_without_keyframes_the_limb_lengths_start_at_what_the_tracks_measure(coco_walk, tmp_path):
     """One perspective camera, no 3D keyframe, the generic human whose forearm is half
     again the subject's: the limb lengths measured from the tracks (``lengths_from_tracks``,

@@ -422,6 +422,9 @@ def generic_walk():
     return fig, names, truth, fps, base, feet
 
 
+# slow (~15 s of CPU, its two solves): the feet stage's contacts and floor are tested on the
+# walk's own figure above; .ci/run runs it on the generic human
+@pytest.mark.slow
 def test_feet_stage_refines_the_first_solve_on_the_generic_figure(generic_walk):
     fig, names, truth, _, base, res = generic_walk
     idx = fig.keypoint_index(names)

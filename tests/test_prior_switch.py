@@ -64,8 +64,10 @@ def random_motion():
 
 
 def _solve(fig, tracks, cam, keys, skip=("yield",), **kw):
-    """Without the stage ``yield``, which would adapt the prior to these dense keyframes instead
-    (:func:`test_dense_keyframes_adapt_the_default_prior_instead`)."""
+    """The switch alone: without the stage ``yield``, which would adapt the prior to these dense
+    keyframes instead (:func:`test_dense_keyframes_adapt_the_default_prior_instead`), and without
+    pinrecon's lifter (it joins with the switch by default)."""
+    kw.setdefault("lifter", "none")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         return pr.reconstruct(fig, tracks, cam, keys, calibrate="none", floor="none", skip=skip, **kw)

@@ -90,3 +90,34 @@ def test_cli_skip_and_labelled_stage_lines(short_walk, tmp_path, capsys):
     assert main(["reconstruct", "--figure", "human", "--tracks", str(tmp_path / "t.json"), "--camera", "auto",
                  "--image-size", "1280", "720", "--skip", "solve", "--out", str(tmp_path / "x.npz")]) == 2
     assert not (tmp_path / "x.npz").exists()
+
+
+@pytest.fixture(scope="module")
+def cued_walk(coco_walk):
+    """The short walk whose tracks carry a lifter's 3D: the true points in the camera's axes,
+    scaled and shifted (a lifter's size and origin are its own), 3 cm noise."""
+    from pinrecon.lifted import Lifted
+
+    cam, tracks, P, _kf = coco_walk
+    tr = tracks.frames(0, 30)
+    X = 1.7 * (P[:30] @ np.asarray(cam.R).T) + np.random.default_rng(4).normal(0.0, 0.05, P[:30].shape)
+    tr.lifted = Lifted(X, list(tr.names), np.ones(X.shape[:2]), "camera", "truth")
+    return tr, P[:30]
+
+
+def test_with_lifted_cues_one_start_and_no_mirror_stage(cued_walk, human):
+    res = _solve(cued_walk, human)
+    rep = {s.name: s.changed for s in res.stages}
+    assert rep["mirrors"].startswith("skipped")
+    assert "hypothesis_chains" not in res.extras  # the lifted start, not the search
+    kp = res.figure.keypoint_index(list(cued_walk[0].names))
+    assert pa_mpjpe(res.keypoints3d[:, kp], cued_walk[1]) < 40.0
+
+
+@pytest.mark.parametrize("stage", ["prior", "faults", "focal", "feet"])
+def test_with_lifted_cues_each_stage_switched_off_alone_gives_a_valid_result(cued_walk, human, stage):
+    res = _solve(cued_walk, human, skip=(stage,))
+    assert {s.name: s.changed for s in res.stages}[stage] == "skipped: switched off"
+    assert np.all(np.isfinite(res.q)) and np.nanmean(res.reprojection_error_px) < 6.0
+    kp = res.figure.keypoint_index(list(cued_walk[0].names))
+    assert pa_mpjpe(res.keypoints3d[:, kp], cued_walk[1]) < 60.0

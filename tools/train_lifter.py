@@ -268,6 +268,41 @@ def export(model) -> dict:
     return L
 
 
+def load_init(model, path: str) -> dict:
+    """Start ``model`` from a weights file this tool wrote (BatchNorm folded in): each Linear
+    takes the folded weights and each BatchNorm becomes the identity, held in eval mode while
+    training goes on (:func:`freeze_norms`); returns the file's meta (its provenance)."""
+    import torch
+
+    with np.load(path, allow_pickle=False) as z:
+        L = {k: np.asarray(z[k], np.float32) for k in z.files if not k.startswith(("meta", "fixture_"))}
+        meta = json.loads(str(z["meta"]))
+
+    def put(lin, bn, W, b):
+        W = W.reshape(-1, W.shape[-1])  # (taps * in, out)
+        with torch.no_grad():
+            lin.weight.copy_(torch.from_numpy(W.T.copy()))
+            lin.bias.copy_(torch.from_numpy(b))
+            if bn is not None:
+                bn.weight.fill_(1.0)
+                bn.bias.zero_()
+                bn.running_mean.zero_()
+                bn.running_var.fill_(1.0 - bn.eps)
+
+    put(model.inp, model.bn, L["in_W"], L["in_b"])
+    for k in range(3):
+        put(model.l1[k], model.n1[k], L[f"b{k}_W1"], L[f"b{k}_b1"])
+        put(model.l2[k], model.n2[k], L[f"b{k}_W2"], L[f"b{k}_b2"])
+    put(model.out, None, L["out_W"], L["out_b"])
+    return meta
+
+
+def freeze_norms(model) -> None:
+    """BatchNorm layers in eval mode (their running statistics held) while the rest trains."""
+    for m in [model.bn, *model.n1, *model.n2]:
+        m.eval()
+
+
 def loss_terms(out, Y):
     import torch
 
@@ -278,6 +313,12 @@ def loss_terms(out, Y):
     mpjpe = d.norm(dim=-1).mean()
     nll = (0.5 * (d.detach() ** 2).sum(-1) * torch.exp(-2 * log_s) + 3 * log_s).mean()
     return mpjpe, nll
+
+
+def sha256(path) -> str:
+    import hashlib
+
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
 def git_commit() -> str:
@@ -325,6 +366,7 @@ def main(argv=None):
     ap.add_argument("--lr", type=float, default=2e-3)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--threads", type=int, default=1)
+    ap.add_argument("--init", help="go on training from this weights file (the same --hold-out: checked)")
     a = ap.parse_args(argv)
     import torch
 
@@ -342,12 +384,19 @@ def main(argv=None):
     vrng = np.random.default_rng(1000 + a.seed)
     val = [sample(held, np.full(len(held), 1 / len(held)), 256, vrng) for _ in range(2)] if held else []
     model = build_model(a.hidden, a.dropout)
+    init = None
+    if a.init:
+        init = load_init(model, a.init)
+        if sorted(init.get("held_out_subjects", [])) != sorted(hold):
+            raise SystemExit(f"--init {a.init} held out subjects {init.get('held_out_subjects')}, not {sorted(hold)}")
     opt = torch.optim.AdamW(model.parameters(), lr=a.lr, weight_decay=1e-4)
     sched = torch.optim.lr_scheduler.OneCycleLR(opt, max_lr=a.lr, total_steps=a.steps, pct_start=0.05)
     t1 = time.time()
     log = []
     for step in range(a.steps):
         model.train()
+        if init is not None:
+            freeze_norms(model)
         X, Y = sample(train, w, a.batch, rng)
         mpjpe, nll = loss_terms(model(torch.from_numpy(X)), torch.from_numpy(Y))
         loss = mpjpe + 0.1 * nll
@@ -377,6 +426,10 @@ def main(argv=None):
         "data": [{"name": c["name"], "subject": c["subject"], "sha256": reg[c["name"]].sha256, "frames": len(c["P"])}
                  for c in train],
         "held_out_clips": [c["name"] for c in held],
+        "init": None if init is None else {"file": Path(a.init).name, "sha256": sha256(a.init),
+                                           "commit": init.get("commit"), "steps": init.get("args", {}).get("steps"),
+                                           "train_seconds": init.get("train_seconds"), "seed": init.get("seed"),
+                                           "init": init.get("init")},
         "args": vars(a), "train_seconds": round(time.time() - t1, 1), "log": log,
         "body": list(BODY), "half_window": HALF_WINDOW,
         "command": "python tools/train_lifter.py " + " ".join(sys.argv[1:] if argv is None else argv),

@@ -63,6 +63,11 @@ def add_reconstruct_options(r, *, inputs=None, camera_required: bool = True, fig
         r.add_argument("--lifted-frame", choices=["camera", "unknown"],
                        help="axes of --lifted: 'camera' (the lifters' own output) or 'unknown' (turned into other "
                        "axes)")
+    r.add_argument("--lifter", metavar="auto|none|FILE",
+                   help="pinrecon's own 2D-to-3D lifter as learned 3D cues (lifted-pose rows) for one camera's "
+                   "tracks that carry none: 'auto' (the shipped weights, for --figure human with the COCO-17 body "
+                   "points), 'none', or a weights file (tools/train_lifter.py); default: "
+                   "pinrecon.lifter.DEFAULT_LIFTER (docs/lifted.md)")
     r.add_argument("--fps-out", type=float, help="reconstruction rate (integer multiple of the tracks' rate)")
     r.add_argument("--seed", choices=["auto", "rest", "keyframes", "planarity", "hypotheses"],
                    help="the start (default auto: the multi-hypothesis start when keyframes are absent or sparse, "
@@ -76,6 +81,10 @@ def add_reconstruct_options(r, *, inputs=None, camera_required: bool = True, fig
     r.add_argument("--acc-root-rotation", type=float, help="smoothing: root angular acceleration sd, rad/s^2")
     r.add_argument("--acc-joints", type=float, help="smoothing: joint acceleration sd, rad/s^2")
     r.add_argument("--sigma-limits", type=float, help="joint-limit barrier sd, rad")
+    r.add_argument("--lifted-weight", type=_non_negative, metavar="W",
+                   help="weight of the lifted-pose rows when the tracks carry a lifter's 3D (a video's MediaPipe "
+                   "world landmarks, --lifted): the inverse variance of a bone's unit-direction chord (default 25, "
+                   "docs/lifted.md); 0 turns them off")
     add_pose_prior_argument(r)
     r.add_argument("--max-iterations", type=int, default=100)
     r.add_argument("--skip", nargs="+", default=(), metavar="STAGE",
@@ -127,7 +136,8 @@ def reconstruct_from_args(args, callback=None):
     kf = load_keyframes(args.keyframes) if args.keyframes else None
     opts = SolverOptions(max_iterations=args.max_iterations)
     kw = {"fps_out": args.fps_out, "weights": Weights(**weights_kwargs(args, WEIGHT_OPTIONS)), "options": opts,
-          "seed": args.seed, "calibrate": args.calibrate, "window": args.window, **feet_from_args(args)}
+          "seed": args.seed, "calibrate": args.calibrate, "window": args.window, **feet_from_args(args),
+          **({"lifter": args.lifter} if getattr(args, "lifter", None) is not None else {})}
     res = reconstruct(fig, tracks, cam, kf, callback=callback, skip=getattr(args, "skip", ()),
                       progress=getattr(callback, "stage", None), **kw)
     if stability_runs:
@@ -284,6 +294,16 @@ def _pose_prior(text: str):
     return v
 
 
+def _non_negative(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not (v >= 0 and v < float("inf")):
+        raise argparse.ArgumentTypeError(f"must be 0 or a positive number, got {text!r}")
+    return v
+
+
 def add_pose_prior_argument(parser) -> None:
     """Add ``--pose-prior``, ``--pose-prior-loss`` and ``--pose-prior-model`` to ``parser``."""
     parser.add_argument("--pose-prior", type=_pose_prior, default=argparse.SUPPRESS, metavar="SCALE|none",
@@ -306,8 +326,10 @@ def add_pose_prior_argument(parser) -> None:
 
 def weights_kwargs(args, names) -> dict:
     """The :class:`~pinrecon.Weights` keywords the command line gave: ``names`` (those not
-    None) and the pose-prior flags (:func:`pose_prior_weights`)."""
+    None), ``--lifted-weight`` and the pose-prior flags (:func:`pose_prior_weights`)."""
     out = {k: getattr(args, k) for k in names if getattr(args, k, None) is not None}
+    if getattr(args, "lifted_weight", None) is not None:  # --lifted-weight (--lifted is a file)
+        out["lifted"] = args.lifted_weight
     out.update(pose_prior_weights(args))
     return out
 

@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .rows.lifted import LiftedPose
 from .solver import SolveResult, SolverOptions, globals_of, solve
 
 __all__ = ["FaultReport", "detect_swaps", "fault_stage", "find_outliers", "left_right_pairs", "repair_swaps",
@@ -117,7 +118,10 @@ def detect_swaps(problem, Q, *, margin: float = 4.0, g=None, view: int = 0):
 
 def repair_swaps(problem, rows, *, view: int = 0) -> None:
     """Exchange the left/right labels of the camera ``view``'s measurement rows ``rows``
-    in place (the measurement rows and that camera's tracks)."""
+    in place (the measurement rows and that camera's tracks), and of the lifted pose of
+    the same image when the tracks carry one (its rows, :meth:`pinrecon.rows.lifted.
+    LiftedPose.swap_sides`, and ``tracks.lifted``): a detector that labels a person's sides
+    the other way round in 2D does so in its 3D too."""
     rows = np.asarray(rows, int)
     if not len(rows):
         return
@@ -130,6 +134,23 @@ def repair_swaps(problem, rows, *, view: int = 0) -> None:
     tracks.points[fr] = tracks.points[fr][:, perm]
     if tracks.confidence is not None:
         tracks.confidence[fr] = tracks.confidence[fr][:, perm]
+    lifted = getattr(tracks, "lifted", None)
+    if lifted is not None:
+        _, lperm = _permutation(list(lifted.names))
+        lifted.points[fr] = lifted.points[fr][:, lperm]
+        lifted.confidence[fr] = lifted.confidence[fr][:, lperm]
+    name = _view_name(problem, view)
+    figure_names = list(problem.figure.keypoint_names)
+    _, kperm = _permutation(figure_names)
+    for row in getattr(problem, "rows", ()):
+        if isinstance(row, LiftedPose) and row.view == name:
+            row.swap_sides(meas.frames[rows], kperm)
+
+
+def _view_name(problem, view: int):
+    """The name of the camera ``view`` of :func:`_views` (None for a problem without views)."""
+    views = [v for v in (getattr(problem, "views", None) or ()) if v.measurement is not None]
+    return views[view].name if view < len(views) else None
 
 
 def find_outliers(problem, Q, *, threshold_px: float | None = None, g=None, view: int = 0):

@@ -36,13 +36,18 @@ from .lifted import Lifted
 __all__ = [
     "BODY",
     "CONFIDENCE_SIGMA_M",
+    "DEFAULT_LIFTER",
     "HALF_WINDOW",
+    "LIFTERS",
     "LIMB_LENGTH_M",
     "MODEL_FPS",
     "LifterModel",
+    "attach_lifter",
     "features",
     "lift",
     "load_lifter",
+    "on_rays",
+    "resolve_lifter",
 ]
 
 #: the lifter's points, in its input and output order
@@ -56,6 +61,13 @@ MODEL_FPS = 30.0
 LIMB_LENGTH_M = 0.40
 #: confidence = 1 / (1 + (sigma / CONFIDENCE_SIGMA_M)^2)
 CONFIDENCE_SIGMA_M = 0.10
+#: ``lifter=`` values besides a weights file: the shipped weights, or none
+LIFTERS = ("auto", "none")
+#: what ``reconstruct`` does without a ``lifter=``: the shipped weights, joining with the broader
+#: pose prior where the default does not know the clip (the prior stage's switch) (measured: bench/README.md, ``bench_lifter.py``)
+DEFAULT_LIFTER = "auto"
+#: at least this many of :data:`BODY` tracked for the lifter to run by default
+MIN_BODY_POINTS = 8
 #: per-frame input channels: 12 x (x, y, confidence), centre velocity (2), camera cues (4)
 N_FEATURES = 3 * len(BODY) + 2 + 4
 
@@ -180,9 +192,18 @@ def _load(path: str) -> LifterModel:
     missing = [k for k in need if k not in layers]
     if missing:
         raise InputError(f"lifter weights lack {missing}", file=path, field="lifter")
-    if layers["in_W"].shape[1] != N_FEATURES:
-        raise InputError(f"lifter weights take {layers['in_W'].shape[1]} features, this pinrecon makes {N_FEATURES}",
+    if layers["in_W"].ndim != 3 or layers["in_W"].shape[:2] != (3, N_FEATURES):
+        raise InputError(f"lifter weights take {layers['in_W'].shape[1:2]} features in kernels of shape "
+                         f"{layers['in_W'].shape}, this pinrecon makes (3, {N_FEATURES}, channels)",
                          file=path, field="in_W")
+    H = layers["in_W"].shape[2]
+    shapes = {"in_b": (H,), "out_W": (H, 4 * len(BODY)), "out_b": (4 * len(BODY),)}
+    for k in range(3):
+        shapes.update({f"b{k}_W1": (3, H, H), f"b{k}_b1": (H,), f"b{k}_W2": (H, H), f"b{k}_b2": (H,)})
+    for key, shape in shapes.items():
+        if layers[key].shape != shape:
+            raise InputError(f"lifter weights {key} have shape {layers[key].shape}, expected {shape} ({H} channels, "
+                             f"{len(BODY)} points x (x, y, z, log spread) out)", file=path, field=key)
     return LifterModel(layers, meta, path)
 
 
@@ -227,3 +248,113 @@ def lift(tracks, camera=None, *, model: LifterModel | None = None) -> Lifted:
     sigma_m = np.exp(log_sigma) * LIMB_LENGTH_M
     return Lifted(P * LIMB_LENGTH_M, list(BODY), 1.0 / (1.0 + (sigma_m / CONFIDENCE_SIGMA_M) ** 2), "camera",
                   f"pinrecon lifter ({Path(model.path).name if model.path else 'weights'})", 0)
+
+
+def on_rays(lifted: Lifted, tracks, camera) -> Lifted:
+    """``lifted`` (``frame="camera"``, :func:`lift`'s output) with each point moved onto its
+    detection's ray at the lifter's depth: the image decides where the points are across the
+    view, the lifter only how far each is in depth.
+
+    Per frame, the points' camera coordinates become ``(x_j Z_j, y_j Z_j, Z_j)`` with ``(x_j,
+    y_j)`` the detection's normalised coordinates (``camera.normalized``; an orthographic
+    camera: ``(uv - center) / scale`` at one depth) and ``Z_j = Z_0 + z_j``, ``z_j`` the
+    lifter's depth relative to its hips and ``Z_0`` the distance that makes the detections'
+    spread across the view (about their confidence-weighted mean) the lifter's in its own
+    units (least squares). Points the tracks miss keep the lifter's position; a point's
+    confidence is the smaller of the lifter's and the detection's. Unit-free as the lifter.
+    """
+    names = [normalise_point_name(n) for n in tracks.names]
+    index = {n: i for i, n in enumerate(names)}
+    K = len(lifted.names)
+    uv = np.full((lifted.T, K, 2), np.nan)
+    det = np.zeros((lifted.T, K))
+    tconf = tracks.confidence if getattr(tracks, "confidence", None) is not None else np.ones(tracks.points.shape[:2])
+    for j, n in enumerate(lifted.names):
+        if n in index:
+            uv[:, j] = tracks.points[:, index[n]]
+            det[:, j] = tconf[:, index[n]]
+    seen = np.all(np.isfinite(uv), axis=-1) & (det > 0) & (lifted.confidence > 0)
+    if hasattr(camera, "normalized"):
+        xy = camera.normalized(np.where(seen[..., None], uv, 0.0))
+        perspective = True
+    else:
+        xy = (np.where(seen[..., None], uv, 0.0) - np.asarray(camera.center, float)) / float(camera.scale)
+        perspective = False
+    P = lifted.points
+    w = np.where(seen, det, 0.0)
+    sw = np.maximum(w.sum(1, keepdims=True), 1e-12)
+    xy_c = xy - (w[..., None] * xy).sum(1, keepdims=True) / sw[..., None]
+    XY = np.nan_to_num(P[..., :2])
+    XY_c = XY - (w[..., None] * XY).sum(1, keepdims=True) / sw[..., None]
+    num = (w * (xy_c * XY_c).sum(-1)).sum(1)
+    den = (w * (xy_c ** 2).sum(-1)).sum(1)
+    Z0 = np.where(den > 1e-12, num / np.maximum(den, 1e-12), np.nan)  # lifter units per normalised unit
+    ok = seen & (np.isfinite(Z0) & (Z0 > 0))[:, None]
+    z = np.nan_to_num(P[..., 2])
+    Z = Z0[:, None] + (z if perspective else 0.0)
+    out = P.copy()
+    out[..., 0] = np.where(ok, xy[..., 0] * Z, P[..., 0])
+    out[..., 1] = np.where(ok, xy[..., 1] * Z, P[..., 1])
+    out[..., 2] = np.where(ok, Z if perspective else z, P[..., 2])
+    conf = np.where(ok, np.minimum(lifted.confidence, np.clip(det, 0.0, 1.0)), lifted.confidence)
+    return Lifted(out, list(lifted.names), conf, lifted.frame, lifted.source, lifted.camera)
+
+
+def resolve_lifter(lifter):
+    """``lifter`` as :func:`attach_lifter` takes it, a weights file read now (an InputError
+    naming the file and the layer when it is not a lifter's): ``"auto"``, ``"none"`` or a
+    :class:`LifterModel`."""
+    if lifter is None or lifter is False:
+        return "none"
+    if isinstance(lifter, LifterModel):
+        return lifter
+    text = str(lifter).strip()
+    if text.lower() in LIFTERS:
+        return text.lower()
+    return load_lifter(text)
+
+
+def attach_lifter(figure, tracks, camera, lifter="auto", *, intrinsics: bool = True):
+    """``tracks`` with pinrecon's lifter's 3D cues attached (``Tracks.lifted``, for the
+    lifted-pose rows of :mod:`pinrecon.rows.lifted`) where it applies, else ``tracks`` as given.
+
+    ``lifter``: ``"auto"`` (the shipped weights), ``"none"`` (``None``, ``False``: off), a
+    weights file, or a :class:`LifterModel`. It applies to one camera's tracks (a
+    :class:`pinrecon.Tracks`, or a list of one) that carry no 3D cues of their own
+    (``lifted`` is ``None``) and hold at least :data:`MIN_BODY_POINTS` of the 12 COCO-17 body
+    points (any layout :mod:`pinrecon.layouts` names them in), and with ``"auto"`` only for
+    the generic human (``Figure.human()``, ``meta["generic"] == "human"``); several cameras
+    see depth and are left alone. ``camera``: the view's camera (``Perspective`` or
+    ``Orthographic``); ``intrinsics=False`` when it is a guess (the auto camera): the lifter
+    then reads pixels, and the camera only places the points on their rays (:func:`on_rays`).
+    """
+    if lifter is None or lifter is False or isinstance(lifter, str) and lifter.strip().lower() == "none":
+        return tracks
+    several = isinstance(tracks, (list, tuple))
+    if several and len(tracks) != 1:
+        return tracks
+    one = tracks[0] if several else tracks
+    cam = camera[0] if isinstance(camera, (list, tuple)) else camera
+    if getattr(one, "lifted", None) is not None or not hasattr(cam, "R"):
+        return tracks
+    auto = isinstance(lifter, str) and lifter.strip().lower() == "auto"
+    if auto and (getattr(figure, "meta", None) or {}).get("generic") != "human":
+        return tracks
+    names = [normalise_point_name(n) for n in one.names]
+    seen = one.observed.any(axis=0) if hasattr(one, "observed") else np.ones(len(names), bool)
+    have = {n for n, s in zip(names, seen) if s} & set(BODY)
+    if len(have) < MIN_BODY_POINTS:
+        if auto:
+            return tracks
+        raise InputError(f"the lifter needs at least {MIN_BODY_POINTS} of the COCO-17 body points {list(BODY)}; "
+                         f"the tracks have {sorted(have)}", file=one.source, field="names")
+    model = lifter if isinstance(lifter, LifterModel) else load_lifter(None if auto else lifter)
+    lifted = on_rays(lift(one, cam if intrinsics else None, model=model), one, cam)
+    own = {n: t for n, t in zip(names, one.names)}
+    keep = [j for j, n in enumerate(lifted.names) if n in own]
+    lifted = Lifted(lifted.points[:, keep], [own[lifted.names[j]] for j in keep], lifted.confidence[:, keep],
+                    lifted.frame, lifted.source, lifted.camera)
+    from dataclasses import replace
+
+    out = replace(one, lifted=lifted)
+    return [out] if several else out

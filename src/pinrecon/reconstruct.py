@@ -27,6 +27,7 @@ import numpy as np
 from .contact import foot_keypoints
 from .errors import InputError
 from .identifiability import proportions_identifiability
+from .lifter import DEFAULT_LIFTER, attach_lifter, resolve_lifter
 from .problem import (
     ReconstructionProblem,
     Weights,
@@ -222,10 +223,14 @@ def build_problem(
     keypoints: Sequence[str] | None = None,
     calibrate: str | None = None,
     image_size=None,
+    lifter="none",
 ) -> Setup:
     """The problem and its start, unsolved; see :func:`reconstruct` (solve it with
-    ``solve(setup.problem, setup.q0, active=setup.active, g0=setup.g0)``)."""
+    ``solve(setup.problem, setup.q0, active=setup.active, g0=setup.g0)``). ``lifter``
+    (``"auto"`` or a weights file) puts pinrecon's lifter's rows in from the start (reconstruct's
+    first solve has them only when its pose prior may not switch)."""
     camera, mode, auto = _camera_and_mode(figure, tracks, camera, keyframes, calibrate, image_size)
+    tracks = attach_lifter(figure, tracks, camera, lifter, intrinsics=auto is None)
     problem = make_problem(figure, tracks, camera, keyframes, fps_out=fps_out, weights=weights, keypoints=keypoints,
                            calibrate=mode, camera_pose=_pose_unknown(auto, mode, camera))
     q0 = initial_trajectory(problem, _start_name(init, seed))
@@ -249,151 +254,95 @@ def _timed(fn):
 
 @_timed
 def reconstruct(
-    figure,
-    tracks: Tracks | Sequence[Tracks],
-    camera,
-    keyframes: Keyframes | Sequence[Keyframe] | None = None,
-    *,
-    fps_out: float | None = None,
-    weights: Weights | None = None,
-    init: np.ndarray | str | None = None,
-    seed: str | None = None,
-    options: SolverOptions | None = None,
-    callback: Callable | None = None,
-    keypoints: Sequence[str] | None = None,
-    floor=None,
-    contact=None,
-    contact_settings=None,
-    calibrate: str | None = None,
-    image_size=None,
-    window: int | None = None,
-    lengths_from_tracks: bool = True,
-    skip: Sequence[str] = (),
-    progress: Callable | None = None,
+    figure, tracks: Tracks | Sequence[Tracks], camera, keyframes: Keyframes | Sequence[Keyframe] | None = None, *,
+    fps_out: float | None = None, weights: Weights | None = None, init: np.ndarray | str | None = None,
+    seed: str | None = None, options: SolverOptions | None = None, callback: Callable | None = None,
+    keypoints: Sequence[str] | None = None, floor=None, contact=None, contact_settings=None,
+    calibrate: str | None = None, image_size=None, window: int | None = None, lengths_from_tracks: bool = True,
+    skip: Sequence[str] = (), progress: Callable | None = None, lifter=DEFAULT_LIFTER,
 ) -> Result:
-    """Reconstruct the figure's motion from 2D tracks seen by ``camera`` (or cameras).
+    """Reconstruct the figure's motion from 2D tracks seen by ``camera`` (or cameras)::
 
-    Parameters
-    ----------
-    figure : :class:`pinrecon.Figure`.
-    tracks : :class:`pinrecon.Tracks`; names are matched to the figure's keypoints. Or a
-        list of them, one per camera.
-    camera : :class:`~pinrecon.cameras.Orthographic` or :class:`~pinrecon.cameras.Perspective`;
-        ``"auto"`` (or ``"auto:orthographic"``, or an
-        :class:`~pinrecon.starts.camera_auto.AutoCamera`) for tracks without a calibration:
-        a camera estimated from the tracks and the figure (principal point at the image
-        centre of ``image_size`` (W, H), focal length from a 60 degree field of view),
-        its focal length (or scale) then calibrated, see
-        :mod:`pinrecon.starts.camera_auto`;
-        or a list of cameras of the same length as ``tracks``, paired in order (e.g.
-        :func:`pinrecon.io.calibration.load_cameras` of a Pose2Sim TOML, whose names are
-        kept). Every camera's tracks, with their own missing points and confidences, are
-        measurement rows through that camera in the one batch solve; the tracks must
-        start at the same instant and end together (rates may differ when the
-        reconstruction rate is a multiple of each; see :func:`pinrecon.problem.view_grid`).
-    keyframes : optional :class:`~pinrecon.tracks.Keyframes` (frames index the tracks).
-    fps_out : reconstruction rate, an integer multiple of ``tracks.fps`` (super-sampled
-        frames have no observation); default ``tracks.fps``.
-    weights : :class:`~pinrecon.problem.Weights`. With the generic human's pose prior chosen by
-        default (``pose_prior_model="auto"``) and a cold start, a clip whose poses that prior
-        does not know (more than half of the main solve's frames, before the turn, fault and
-        feet stages, or a fifth with one camera and no keyframes: :func:`pinrecon.unfamiliar.
-        switch_share`) is solved again from its start with the
-        broader ``human_pose_mixture`` (:func:`pinrecon.unfamiliar.broader_prior`; the first
-        solve's warnings are dropped), and only that solve goes on through the stages; the
-        result says so (``extras["prior_model"]``, its summary). A clip solved in windows
-        decides on the whole first result.
-    init : a (T_out, nq) start (a warm start: its limbs' reflections are kept; the mirror
-        stage of :mod:`pinrecon.starts.mirrors` runs after cold starts with the broader pose
-        prior, :func:`_mirrors`), or the name of a start; ``"default"`` is the rest-pose
-        start. Default: the keyframe start when there are keyframes, else the rest-pose start
-        (the rest pose placed on the tracks and rigidly fitted).
-    seed : the name of a start (:func:`pinrecon.starts.available_starts`: ``"auto"``,
-        ``"rest"``, ``"keyframes"``, ``"planarity"``, and any registered with
-        :func:`pinrecon.starts.register_start`); overrides ``init``.
-    options : :class:`~pinrecon.solver.SolverOptions`.
-    callback : called with each :class:`~pinrecon.solver.IterationReport`; return True to stop.
-    keypoints : track names to use (default: every track name the figure has).
-    floor, contact, contact_settings : feet on the ground (:mod:`pinrecon.contact`). Default
-        (both ``None``): on for the generic human whose tracks hold a foot point
-        (:func:`default_feet`) when the clip is solved in one batch, else off; ``floor="none"``
-        (or ``False``) turns it off. ``floor``: ``"auto"`` (estimated under the lowest foot
-        points), a :class:`~pinrecon.contact.Floor` or a spec (``"y=0"``, ``"nx,ny,nz,d"``).
-        ``contact``: ``"auto"`` (detected from low height and speed), a (T_tracks, F)
-        bool array or a mapping per foot keypoint (:func:`pinrecon.contact.contacts_from_spec`),
-        or ``False`` (floor only). Either one turns the stage on (the other then defaults
-        to ``"auto"``): after the solve, the contact rows (zero velocity and height of
-        planted foot points, non-penetration of every foot point) are added and the problem
-        is solved again warm, floor and contacts refined between solves
-        (:func:`pinrecon.contact.solve_on_the_floor`; ``contact_settings`` a
-        :class:`~pinrecon.contact.ContactSettings`). The result's ``extras`` then hold the
-        floor and contacts and its summary the foot metrics.
-    calibrate : ``"none"``, ``"lengths"`` (the figure's segment lengths), ``"camera"``
-        (every camera's focal length, or scale for an orthographic camera) or
-        ``"lengths+camera"``: unknowns of the same batch solve, see
-        :func:`pinrecon.problem.make_problem` and ``docs/globals.md``. Default
-        (``None``): ``"lengths"`` for the generic ``Figure.human()`` with 3D point
-        keyframes or several given cameras or, without them, one given camera (the lengths
-        then start at what the tracks measure, ``lengths_from_tracks``); ``"none"`` otherwise and for any other
-        figure (:func:`pinrecon.problem.default_calibrate`); with the auto camera, plus
-        ``"camera"`` (a perspective auto camera measures the lengths from the tracks too:
-        its start places the figure by its size, so they come out relative to it).
-    image_size : (W, H) pixels, for ``camera="auto"`` when the tracks carry no image size.
-    lengths_from_tracks : when the lengths are calibrated from one camera with no 3D
-        keyframe (nothing else gives the proportions), start them, and centre their prior,
-        at the limb segments' lengths measured from the tracks (:func:`_lengths_from_tracks`);
-        the start is then run again on the figure with those lengths. ``result.calibration
-        ["lengths_from_tracks"]`` says what was measured.
-    window : solve in overlapping windows of this many frames, in bounded memory
-        (:mod:`pinrecon.windowed`); default: windows of 2000 frames past 10000 frames
-        (unless ``floor`` or ``contact`` is given; the default feet stage is then left
-        out), ``0``: one batch solve whatever the length.
-    skip : names of stages to switch off (:data:`pinrecon.stages.STAGES`: ``prior``,
-        ``turns``, ``mirrors``, ``faults``, ``focal``, ``feet``); the start and the solve always run.
-    progress : called with each stage's name as it starts (the CLI's labelled progress).
+        result = reconstruct(Figure.human(), tracks, "auto", image_size=(1920, 1080))
+        result = reconstruct(fig, [tracks1, tracks2], load_cameras("Calib.toml"), keyframes)
 
-    Returns
-    -------
-    :class:`~pinrecon.result.Result`, with every camera (``cameras``, ``camera_names``) and
-    each camera's reprojection error (``reprojection_error_px_per_camera``). Calibrated,
-    ``result.figure`` is the calibrated figure (its keypoints are ``keypoints3d``),
-    ``result.cameras`` the fitted cameras and ``result.calibration`` the factors, the
-    fitted lengths and focal lengths. ``result.stages`` holds one
+    ``tracks``: :class:`~pinrecon.tracks.Tracks` (a lifter's 3D in ``tracks.lifted`` enters as
+    lifted-pose rows), or one per camera. ``camera``: a camera, a list of them paired with
+    ``tracks``, or ``"auto"`` / ``"auto:orthographic"`` / an :class:`~pinrecon.starts.camera_auto.
+    AutoCamera` (estimated from the tracks; ``image_size`` (W, H)). ``keyframes``: optional
+    :class:`~pinrecon.tracks.Keyframes`. ``fps_out``: a multiple of the tracks' rate.
+    ``weights``: :class:`~pinrecon.weights.Weights`. ``init``: a (T, nq) warm start or a start's
+    name; ``seed``: a start's name (:func:`pinrecon.starts.available_starts`). ``options``,
+    ``callback``: the solver's (:class:`~pinrecon.solver.SolverOptions`; ``callback(report)``
+    returning True stops). ``keypoints``: the track names to use. ``floor``, ``contact``,
+    ``contact_settings``: feet on the ground (:mod:`pinrecon.contact`; on by default for the
+    generic human, ``floor="none"`` turns it off). ``calibrate``: ``"none"``, ``"lengths"``,
+    ``"camera"`` or ``"lengths+camera"`` (default :func:`pinrecon.problem.default_calibrate`;
+    ``lengths_from_tracks`` starts one camera's lengths where the tracks measure them).
+    ``window``: frames per window of a long clip (:mod:`pinrecon.windowed`; 0: one batch).
+    ``skip``: stages to switch off and ``progress(name)``, called as each starts
+    (:data:`pinrecon.stages.STAGES`). ``lifter``: pinrecon's own lifter (``"auto"``, ``"none"`` or a
+    weights file), joining with the broader prior. Parameters in full: ``docs/reconstruct.md``.
+
+    Returns a :class:`~pinrecon.result.Result`; ``result.stages`` holds a
     :class:`~pinrecon.stages.StageReport` per stage (time, cost before and after, what changed).
     """
     skip = check_skip(skip)
-    off = floor is False or isinstance(floor, str) and floor.strip().lower() == "none"
-    if off and contact not in (None, False):
-        raise InputError("contacts need a floor: drop floor='none' or the contacts", field="contact")
-    floor, contact = (None, None) if off else (floor, contact)
+    floor, contact, off = _feet_settings(floor, contact)
     camera, mode, auto = _camera_and_mode(figure, tracks, camera, keyframes, calibrate, image_size,
                                           lengths_from_tracks=bool(lengths_from_tracks))
     default = prior_for(figure, "auto") if _may_broaden(figure, weights, init) else None
+    lift = None if default is None else functools.partial(  # it joins with the broader prior (the prior stage)
+        attach_lifter, figure, camera=camera, lifter=resolve_lifter(lifter), intrinsics=auto is None)
     if default is not None:  # the default prior named; a broader one when it does not know the clip
         weights = replace(weights or Weights(), pose_prior_model=default)
     inputs = {"figure": figure, "tracks": tracks, "camera": camera, "keyframes": keyframes, "fps_out": fps_out,
               "weights": weights, "keypoints": keypoints}
     problem = make_problem(**inputs, calibrate=mode)
     limit = switch_share(bool(keyframes), _several_views(tracks))  # the unfamiliar share that switches
+    adapt = _yield_at_start(problem, keyframes, init, seed, skip)  # the prior adapted to dense keyframes
     span = windowed_length(problem.n_frames, window if window is not None or floor is None and contact is None else 0)
     if span:  # a long clip: windows in bounded memory (the fault stage runs in each)
         if floor is not None or contact is not None:
             raise InputError("the feet stage (floor, contact) needs one batch solve: pass window=0", field="window")
         return _reconstruct_windowed(problem, inputs, mode, calibrate, auto, _start_name(init, seed), init, span,
-                                     default, limit, options, callback,
-                                     _yield_at_start(problem, keyframes, init, seed, skip))
+                                     default, limit, options, callback, lift, adapt)
+    run = _run(problem, inputs, mode, auto, init, seed, options, callback, default, limit, lengths_from_tracks,
+               None if off else (floor, contact), contact_settings, lift, adapt)
+    return _result(run, run_stages(run, skip, progress))
+
+
+def _feet_settings(floor, contact):
+    """``(floor, contact, off)``: ``floor="none"`` (or False) turns the feet stage off."""
+    off = floor is False or isinstance(floor, str) and floor.strip().lower() == "none"
+    if off and contact not in (None, False):
+        raise InputError("contacts need a floor: drop floor='none' or the contacts", field="contact")
+    return (None, None, True) if off else (floor, contact, False)
+
+
+def _run(problem, inputs, mode, auto, init, seed, options, callback, default, limit, lengths_from_tracks, feet,
+         contact_settings, lift, adapt) -> Run:
+    """The :class:`~pinrecon.stages.Run` of one batch solve; ``feet`` is ``(floor, contact)``,
+    or None when the feet stage is off; ``lift`` attaches the lifter at the prior's switch; ``adapt``:
+    the pose prior adapted to the start (the keyframes' poses) before the solve."""
+    camera, tracks = inputs["camera"], inputs["tracks"]
     if _pose_unknown(auto, mode, camera):  # the keyframes placed the auto camera: its place refined too
         inputs["camera_pose"] = True
         problem = make_problem(**inputs, calibrate=mode)
         auto = {**auto, "pose": "from the point keyframes, then refined by the solve with the tracks"}
-    if not off and floor is None and contact is None and default_feet(figure, tracks, keypoints):
+    floor, contact = feet or (None, None)
+    if feet is not None and floor is None and contact is None and \
+            default_feet(inputs["figure"], tracks, inputs["keypoints"]):
         floor = contact = "auto"
-    run = Run(problem, inputs, mode, _start_name(init, seed), options, callback, auto, default_prior=default,
-              lengths=bool(lengths_from_tracks) and _lengths_measurable(auto and auto["projection"]) and _cold_start(init),
-              switch_limit=limit, mirrors=_mirrors(problem, init), floor=floor, contact=contact,
-              contact_settings=contact_settings, measure_lengths=_lengths_from_tracks,
-              yield_at_start=_yield_at_start(problem, keyframes, init, seed, skip))
-    reports = run_stages(run, skip, progress)
+    return Run(problem, inputs, mode, _start_name(init, seed), options, callback, auto, default_prior=default,
+               lengths=bool(lengths_from_tracks) and _lengths_measurable(auto and auto["projection"])
+               and _cold_start(init), switch_limit=limit, mirrors=_mirrors(problem, init), floor=floor,
+               contact=contact, contact_settings=contact_settings, measure_lengths=_lengths_from_tracks, lifter=lift,
+               yield_at_start=adapt)
+
+
+def _result(run: Run, reports) -> Result:
+    """The :class:`Result` of a run of the stages, with their reports."""
     # a clip solved again with the broader prior is judged by the default's clips (a fallback knows no poses)
     result = _package(run.problem, run.res, run.auto, judge=run.judge)
     if run.feet is not None:
@@ -407,7 +356,7 @@ def reconstruct(
 
 
 def _reconstruct_windowed(problem, inputs, mode, calibrate, auto, start, init, span, default, limit, options,
-                          callback, adapt=False) -> Result:
+                          callback, lift=None, adapt=False) -> Result:
     """:func:`reconstruct` of a long clip in windows of ``span`` frames (:mod:`pinrecon.windowed`),
     solved again with the broader prior when the default does not know the clip; ``adapt``: each
     window's prior adapted to its keyframes instead (the stage ``yield``)."""
@@ -426,6 +375,8 @@ def _reconstruct_windowed(problem, inputs, mode, calibrate, auto, start, init, s
     switch = None if default is None or adapt else broader_prior(default, "auto", result.extras, share=limit)
     if switch is not None:
         weights = replace(inputs["weights"], pose_prior_model=switch[0])
+        if lift is not None:  # poses the default prior does not know: the lifter's cues join
+            inputs = {**inputs, "tracks": lift(inputs["tracks"])}
         problem = make_problem(**{**inputs, "weights": weights}, calibrate=mode)
         res = solve_windowed(problem, start, options, callback, window=span, mirrors=_mirrors(problem, init))
         result = _package(problem, res, auto, identify=False, judge=default)

@@ -12,26 +12,38 @@ changed). A stage that has nothing to do returns ``None`` and is reported as ski
 
 =========  ======================================================================================
 ``solve``  the start (the rest pose placed on the tracks, or the keyframes, or the named start;
-           with one camera, the limbs' lengths measured from the tracks) and the batch solve;
-           a start that is dense 3D keyframes' poses first adapts the pose prior to them
+           :func:`pinrecon.starts.auto_start`: the multi-hypothesis search for one camera, the
+           lifted start when the tracks carry a lifter's 3D; with one camera, the limbs'
+           lengths measured from the tracks) and the batch solve; a start that is dense 3D
+           keyframes' poses first adapts the pose prior to them
            (:func:`pinrecon.prior_yield.adapt_prior`)
 ``prior``  the generic human's pose prior switched to its broader mixture and the clip solved
            again when more of its poses than :func:`pinrecon.unfamiliar.switch_share` are
-           unknown to the default (not when the prior was adapted to keyframes: they decide)
+           unknown to the default, pinrecon's lifter joining as lifted-pose rows (``lifter="auto"``);
+           not when the prior was adapted to keyframes (they decide the poses)
 ``yield``  the pose prior widened and re-centred where the data disagree with it
            (:mod:`pinrecon.prior_yield`), the clip solved again warm
 ``turns``  fast turns the solution holds a turn too few of, wound (warm re-solves)
-``mirrors`` the limbs' spans mirrored where that lowers the MAP cost (with the broader prior)
+``mirrors`` the limbs' spans mirrored where that lowers the MAP cost (with the broader prior);
+           skipped when the tracks carry a lifter's 3D
 ``faults`` left/right swaps of the detector repaired (warm re-solve), outliers reported
-``focal``  an auto camera's focal length carried down its cost valley
+``focal``  an auto camera's focal length carried down its cost valley (with a lifter's 3D, its
+           solves at most :data:`FOCAL_ITERATIONS_LIFTED` iterations each)
 ``feet``   feet on the ground: floor and contact rows, solved again warm
 =========  ======================================================================================
+
+With a lifter's 3D the search and the mirror stage no longer pay: on ``bench/bench_stages.py``
+(100 frames of walk, run, dances 05_02 and 05_11, and Pose2Sim's trial with MediaPipe's 3D) the
+mirror stage changed nothing on any clip (11-13 s on the trial and 05_11); the lifted start
+matched the search within 2 mm on the synthetic clips and was 13.5 mm better on the trial, and
+the whole call ran 1.7-6 times faster (``bench/README.md``, ``bench_stages.py``).
 
 ``skip`` (names of :data:`STAGES` but ``solve``) switches stages off; the result stays valid.
 """
 
 from __future__ import annotations
 
+import functools
 import time
 import warnings
 from collections.abc import Callable, Iterable
@@ -45,12 +57,17 @@ from .faults import fault_stage, report_outliers
 from .prior_yield import adapt_prior, yield_to_data
 from .problem import ReconstructionProblem, make_problem
 from .result import StageReport
-from .solver import SolveResult, solve
-from .starts import initial_trajectory
+from .solver import SolveResult, SolverOptions, solve
+from .starts import auto_start, initial_trajectory
 from .starts.camera_auto import settle_focal
+from .starts.lifted import has_lifted
 from .starts.mirrors import mirror_stage
 from .starts.turns import turn_stage
 from .unfamiliar import BROADER_PRIOR, broader_prior, unfamiliar_poses
+
+#: the focal stage's solves with lifted cues: at most this many iterations each (bench_stages:
+#: the same PA-MPJPE and flips on the five clips, the stage 30 % shorter on Pose2Sim's trial)
+FOCAL_ITERATIONS_LIFTED = 10
 
 __all__ = ["STAGES", "StageReport", "Run", "run_stages", "check_skip"]
 
@@ -78,6 +95,8 @@ class Run:
     contact_settings: object = None
     measure_lengths: Callable | None = None  # (problem, q0, start, inputs) -> (problem, q0)
     yield_at_start: bool = False  # the pose prior adapted to the start (the keyframes' poses) before the solve
+    lifter: Callable | None = None  # tracks -> tracks with a lifter's 3D cues, joined when the prior switches
+    joined: bool = False  # the lifter joined at the prior's switch (the cue rules below are for given cues)
     # what the stages leave for the result
     switch: tuple | None = None
     judge: str | None = None
@@ -91,10 +110,11 @@ def _solve(run: Run) -> str:
     with warnings.catch_warnings(record=run.default_prior is not None) as caught:
         if run.default_prior is not None:
             warnings.simplefilter("always")
-        q0 = initial_trajectory(run.problem, run.start)
+        start = functools.partial(auto_start, lifted=False) if run.joined and run.start == "auto" else run.start
+        q0 = initial_trajectory(run.problem, start)
         what = "start and batch solve"
         if run.lengths and run.measure_lengths is not None:
-            run.problem, q0 = run.measure_lengths(run.problem, q0, run.start, run.inputs)
+            run.problem, q0 = run.measure_lengths(run.problem, q0, start, run.inputs)
             if getattr(run.problem, "measured_lengths", None):
                 what += f", {len(run.problem.measured_lengths)} limb lengths measured from the tracks"
         if run.yield_at_start:  # the start is the keyframes' poses: the data's own, before any compromise
@@ -104,6 +124,12 @@ def _solve(run: Run) -> str:
         run.res = solve(run.problem, q0, run.options, run.callback, active=run.problem.active, g0=run.problem.g0)
     run.caught = list(caught or [])
     return f"{what}: {run.res.iterations} iterations, {run.res.status}"
+
+
+def _cued(run: Run) -> bool:
+    """Whether the tracks came with a lifter's 3D (measured in bench_stages; pinrecon's own
+    lifter joining at the prior's switch keeps the stages it was measured with)."""
+    return has_lifted(run.problem) and not run.joined
 
 
 def _reissue(run: Run) -> None:
@@ -126,6 +152,10 @@ def _prior(run: Run) -> str | None:
         return None
     run.caught = []  # the first solve's warnings are dropped
     run.inputs["weights"] = replace(run.inputs["weights"], pose_prior_model=switch[0])
+    if run.lifter is not None:  # poses the default prior does not know: the lifter's cues join
+        given = getattr(run.inputs["tracks"], "lifted", None) is not None
+        run.inputs["tracks"] = run.lifter(run.inputs["tracks"])
+        run.joined = not given and getattr(run.inputs["tracks"], "lifted", None) is not None
     run.problem = make_problem(**run.inputs, calibrate=run.mode)
     default, run.default_prior = run.default_prior, None
     _solve(run)
@@ -154,6 +184,8 @@ def _warm(name: str, fn) -> Callable:
     def stage(run: Run) -> str | None:
         if name == "mirrors" and not run.mirrors:
             return None
+        if name == "mirrors" and _cued(run):
+            return "skipped: the lifted cues decide the limbs' reflections"
         before = run.res
         run.res = fn(run.problem, run.res, run.options, run.callback)
         return "nothing kept" if run.res is before else "changed (warm re-solve kept)"
@@ -166,7 +198,10 @@ def _focal(run: Run) -> str | None:
     if not run.auto or run.auto.get("projection") != "perspective":
         return None
     before = run.res
-    run.res, run.auto = settle_focal(run.problem, run.res, run.auto, options=run.options)
+    options = run.options
+    if _cued(run):  # the lifted cues hold the poses: a few steps settle each point of the valley
+        options = replace(options or SolverOptions(), max_iterations=FOCAL_ITERATIONS_LIFTED)
+    run.res, run.auto = settle_focal(run.problem, run.res, run.auto, options=options)
     if run.res is before:
         return "focal length at the bottom of its valley"
     report_outliers(run.problem, run.res)  # restarted down the valley: the outliers of where it ended

@@ -68,6 +68,11 @@ class Weights:
     lifted_loss, lifted_loss_scale : their robust loss (``"cauchy"``, ``"huber"``, ``"l2"``)
         on the chord, and its scale in chord units (0.5: about 29 degrees), so a bone the
         lifter got wrong is outvoted by the image and the other rows.
+    lifted_lengths : the figure's proportions (its bones' log lengths about their mean)
+        pulled to the lifter's median ones over the clip with this standard deviation
+        (:class:`pinrecon.rows.lifted.LiftedLengths`), whenever the lifted rows are on;
+        ``None``: not. 0.05 measured in ``bench/bench_lifted_real.py`` (Pose2Sim's trial, mean
+        PA-MPJPE 92.0 -> 89.1 mm) and ``bench/bench_lifted.py`` (the same to 0.2 mm).
     root_group : group on which the root's constant-velocity prior is written,
         ``"R3xSO3"`` (world translation and orientation apart; default) or ``"SE3"``
         (the free flyer's screw motion), see :mod:`pinrecon.rows.smoothing`.
@@ -92,6 +97,7 @@ class Weights:
     lifted: float | None = 25.0
     lifted_loss: str = "cauchy"
     lifted_loss_scale: float = 0.5
+    lifted_lengths: float | None = 0.05
 
     def __post_init__(self):
         for f in fields(self):

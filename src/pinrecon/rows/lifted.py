@@ -49,7 +49,8 @@ import numpy as np
 from .base import RowBlock, RowKind, State, supported_columns
 
 __all__ = ["LiftedPose", "EXTRA_BONES", "lifted_bones", "lifted_rows", "procrustes_rotation",
-           "disagreement_extras", "disagreement_spans", "DISAGREEMENT_DEG"]
+           "disagreement_extras", "disagreement_spans", "DISAGREEMENT_DEG",
+           "LiftedLengths", "lifted_lengths_row", "LENGTH_BONES"]
 
 #: bones across the skeleton's tree (the tree's own bones come from the keypoint map's parents)
 EXTRA_BONES = (
@@ -106,12 +107,13 @@ class LiftedPose(RowKind):
     loss : ``"cauchy"``, ``"huber"`` or ``"l2"``; ``loss_scale`` its scale in chord units.
     irls : Procrustes re-solves with the robust weights (an estimated rotation only).
     names : (B,) labels of the bones (``"left_elbow-left_wrist"``), for reports.
+    view : the name of the camera whose image was lifted (:class:`pinrecon.problem.View`).
     """
 
     name = "lifted"
 
     def __init__(self, frames, bones, directions, confidence, R_world_lifter=None, weight=25.0, loss="cauchy",
-                 loss_scale=0.5, irls=3, names=None):
+                 loss_scale=0.5, irls=3, names=None, view=None):
         self.frames = np.asarray(frames, dtype=int)
         self.kinematic_frames = self.frames
         self.bones = np.asarray(bones, dtype=int).reshape(-1, 2)
@@ -127,6 +129,32 @@ class LiftedPose(RowKind):
         self.loss, self.loss_scale, self.irls = loss, float(loss_scale), int(irls)
         self.names = list(names) if names is not None else [f"{a}-{b}" for a, b in self.bones]
         self.keypoints = np.unique(self.bones)
+        self.view = view
+
+    def swap_sides(self, frames, perm) -> None:
+        """Exchange the lifter's left and right labels at the reconstruction frames
+        ``frames`` in place, as the fault stage does the detector's (:mod:`pinrecon.faults`):
+        ``perm`` (K,) maps each figure keypoint to its other side's (itself when it has
+        none). A bone ``(a, b)`` takes the lifter's direction of ``(perm a, perm b)``
+        (reversed when that bone is stored as ``(perm b, perm a)``; no row when the lifter
+        has no such bone)."""
+        perm = np.asarray(perm, int)
+        index = {(int(a), int(b)): j for j, (a, b) in enumerate(self.bones)}
+        src, sign = np.full(len(self.bones), -1), np.ones(len(self.bones))
+        for j, (a, b) in enumerate(self.bones):
+            pa, pb = int(perm[a]), int(perm[b])
+            if (pa, pb) in index:
+                src[j] = index[(pa, pb)]
+            elif (pb, pa) in index:
+                src[j], sign[j] = index[(pb, pa)], -1.0
+        n = np.flatnonzero(np.isin(self.frames, np.asarray(frames, int)))
+        if not len(n):
+            return
+        ok = src >= 0
+        take = np.where(ok, src, 0)
+        self.L[n] = np.where(ok[:, None], self.L[n][:, take] * sign[:, None], 0.0)
+        self.w[n] = np.where(ok, self.w[n][:, take], 0.0)
+        self.observed[n] = ok & self.observed[n][:, take]
 
     # -- pieces ---------------------------------------------------------------------------
     def _robust(self, s):
@@ -209,6 +237,99 @@ class LiftedPose(RowKind):
         return RowBlock(self.frames[:, None], r, J, cols, self.name, cost_value=cost, Jg=Jg, gcols=gcols)
 
 
+#: bones whose length the figure keeps over the clip (nearly: the sides cross the spine), for
+#: the lifter's proportions (:class:`LiftedLengths`)
+LENGTH_BONES = (
+    ("left_shoulder", "left_elbow"), ("right_shoulder", "right_elbow"), ("left_elbow", "left_wrist"),
+    ("right_elbow", "right_wrist"), ("left_hip", "left_knee"), ("right_hip", "right_knee"), ("left_knee", "left_ankle"),
+    ("right_knee", "right_ankle"), ("left_shoulder", "right_shoulder"), ("left_hip", "right_hip"),
+    ("left_shoulder", "left_hip"), ("right_shoulder", "right_hip"),
+)
+
+
+class LiftedLengths(RowKind):
+    """Rows pulling the figure's proportions to a lifter's: per frame, the figure's log bone
+    lengths about their mean over the bones, against the lifter's median (over the clip)
+    log lengths about theirs,
+
+        r_tb = sqrt(w) (lambda_tb - mean_b' lambda_tb' - (m_b - mean_b' m_b')),
+        lambda_tb = log |p_b - p_a|,  m_b = median_t log |L_tb - L_ta|,
+
+    free of the lifter's size like the direction rows. ``weight`` is the inverse variance of
+    one frame's log length, divided by the number of frames (so the clip weighs as one
+    measurement of the proportions whatever its length). The derivative: ``d lambda_b =
+    d_b^T (dp_b - dp_a) / |p_b - p_a|`` (``d_b`` the unit bone), centred over the bones.
+
+    Parameters
+    ----------
+    frames : (N,) reconstruction frames.
+    bones : (B, 2) figure keypoint indices.
+    log_lengths : (B,) the lifter's median log lengths (any units).
+    weight : per-frame weight (the whole clip: ``weight * N``).
+    """
+
+    name = "lifted_lengths"
+
+    def __init__(self, frames, bones, log_lengths, weight):
+        self.frames = np.asarray(frames, dtype=int)
+        self.kinematic_frames = self.frames
+        self.bones = np.asarray(bones, dtype=int).reshape(-1, 2)
+        m = np.asarray(log_lengths, float)
+        self.target = m - m.mean()
+        self.weight = float(weight)
+        self.keypoints = np.unique(self.bones)
+
+    def log_lengths(self, state: State) -> np.ndarray:
+        """(N, B) the figure's log bone lengths at the state."""
+        P = state.points[state.slot[self.frames]]
+        return np.log(np.maximum(np.linalg.norm(P[:, self.bones[:, 1]] - P[:, self.bones[:, 0]], axis=-1), 1e-12))
+
+    def evaluate(self, state: State, jacobian: bool = True) -> RowBlock:
+        P = state.points[state.slot[self.frames]]
+        v = P[:, self.bones[:, 1]] - P[:, self.bones[:, 0]]
+        n = np.maximum(np.linalg.norm(v, axis=-1), 1e-12)
+        lam = np.log(n)
+        sw = np.sqrt(self.weight)
+        r = sw * (lam - lam.mean(axis=1, keepdims=True) - self.target)
+        B = r.shape[1]
+        J = Jg = gcols = None
+        cols = np.arange(state.figure.nv)
+        if jacobian:
+            C = sw * (np.eye(B) - 1.0 / B)  # the centring over the bones
+            A = (v / (n * n)[..., None])[:, :, None, :]  # d lambda / d (p_b - p_a): (N, B, 1, 3)
+            kps = np.r_[self.bones[:, 1], self.bones[:, 0]]
+            AA = np.concatenate([A, -A], axis=1)
+            cols = supported_columns(state.figure, self.keypoints)
+            Jp = state.point_jacobians(state.slot[self.frames], kps, AA, None, cols)[:, :, 0]  # (N, 2B, c)
+            J = np.einsum("ij,njc->nic", C, Jp[:, :B] + Jp[:, B:])[:, None]
+            if state.has_global_points:
+                Gp = state.global_point_jacobians(state.slot[self.frames], kps, AA)[:, :, 0]
+                Jg, gcols = np.einsum("ij,njc->nic", C, Gp[:, :B] + Gp[:, B:]), state.proportion_cols
+        return RowBlock(self.frames[:, None], r, J, cols, self.name, Jg=Jg, gcols=gcols)
+
+
+def lifted_lengths_row(figure, lifted, frames, sigma: float) -> LiftedLengths | None:
+    """The :class:`LiftedLengths` row of a lifted pose (names the figure's) on the
+    reconstruction frames ``frames`` (one per lifted frame), with the standard deviation
+    ``sigma`` of the clip's log length ratios; ``None`` with fewer than 3 bones observed in
+    at least half the frames."""
+    pairs, logs = [], []
+    for a, b in LENGTH_BONES:
+        if a not in lifted.names or b not in lifted.names or a not in figure.keypoint_names:
+            continue
+        ia, ib = lifted.names.index(a), lifted.names.index(b)
+        ok = (lifted.confidence[:, ia] > 0) & (lifted.confidence[:, ib] > 0)
+        n = np.linalg.norm(lifted.points[:, ib] - lifted.points[:, ia], axis=-1)
+        ok &= np.isfinite(n) & (n > 1e-9)
+        if ok.sum() < max(1, len(n) // 2):
+            continue
+        pairs.append((figure.keypoint_names.index(a), figure.keypoint_names.index(b)))
+        logs.append(float(np.median(np.log(n[ok]))))
+    if len(pairs) < 3 or not len(frames):
+        return None
+    return LiftedLengths(frames, pairs, logs, 1.0 / (sigma**2 * len(frames)))
+
+
 def lifted_rows(figure, views, weights) -> list[LiftedPose]:
     """One :class:`LiftedPose` per view whose tracks carry a lifted pose (``view.tracks.
     lifted``, names already the figure's), on the reconstruction grid (tracks frame ``i`` is
@@ -238,8 +359,14 @@ def lifted_rows(figure, views, weights) -> list[LiftedPose]:
             continue
         R = np.asarray(v.camera.R, float).T if lifted.frame == "camera" else None
         bones = np.array([[figure.keypoint_names.index(a), figure.keypoint_names.index(b)] for a, b in pairs])
+        sigma_len = getattr(weights, "lifted_lengths", None)
+        if sigma_len:
+            row = lifted_lengths_row(figure, lifted, rows * v.factor, sigma_len)
+            if row is not None:
+                out.append(row)
         out.append(LiftedPose(rows * v.factor, bones, L[rows], conf[rows], R, weight=w, loss=weights.lifted_loss,
-                              loss_scale=weights.lifted_loss_scale, names=[f"{a}-{b}" for a, b in pairs]))
+                              loss_scale=weights.lifted_loss_scale, names=[f"{a}-{b}" for a, b in pairs],
+                              view=v.name))
     return out
 
 

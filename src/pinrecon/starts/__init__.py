@@ -5,12 +5,14 @@
 name            start
 ==============  ============================================================
 ``"auto"``      ``"hypotheses"`` for one camera's tracks without keyframes or with
-                sparse ones (:func:`sparse_keyframes`), else ``"keyframes"`` when
-                there are keyframes, else ``"rest"``
+                sparse ones (:func:`sparse_keyframes`), ``"lifted"`` instead when the
+                tracks carry a lifter's 3D; else ``"keyframes"`` when there are
+                keyframes, else ``"rest"``
 ``"rest"``      rest pose placed on the tracks, root fitted (:mod:`.rest`)
 ``"keyframes"`` poses at the keyframes, interpolated, placed on the tracks
 ``"planarity"`` Hoffman-Flinchbaugh planarity seed (:mod:`.planarity`)
 ``"hypotheses"`` limb and trunk reflections enumerated, scored, a path chosen (:mod:`.hypotheses`)
+``"lifted"``    the figure posed on a lifter's bone directions, placed on the tracks (:mod:`.lifted`)
 ``"markers"``   poses from 3D markers (:func:`pinrecon.reconstruct_markers`)
 ==============  ============================================================
 
@@ -27,6 +29,7 @@ from ..errors import InputError
 from ..problem import ReconstructionProblem
 from .keyframes import keyframe_start, marker_start
 from .hypotheses import hypotheses_start
+from .lifted import has_lifted, lifted_start
 from .planarity import planarity_start
 from .rest import rest_start
 
@@ -45,10 +48,12 @@ def sparse_keyframes(problem: ReconstructionProblem, max_gap_s: float = 1.0) -> 
     return bool(gaps.max() > max_gap_s * float(problem.fps or 1.0))
 
 
-def auto_start(problem: ReconstructionProblem) -> np.ndarray:
+def auto_start(problem: ReconstructionProblem, lifted: bool = True) -> np.ndarray:
     """The multi-hypothesis start for one camera's 2D tracks without keyframes or with
     sparse ones (a stretch of more than a second without any, :func:`sparse_keyframes`);
-    the keyframe start with denser keyframes; the rest-pose start otherwise.
+    the keyframe start with denser keyframes; the rest-pose start otherwise. With ``lifted``
+    (default) and lifted-pose rows in the problem, the lifted start (:mod:`.lifted`) instead
+    of the multi-hypothesis one.
 
     Measured in ``bench/bench_real.py`` (the calibrated human on detector-like tracks,
     mean of two views): without keyframes the multi-hypothesis start took the walk from
@@ -60,7 +65,7 @@ def auto_start(problem: ReconstructionProblem) -> np.ndarray:
     mm), and on the lab case it picks the planarity seed (walk 23.3 -> 1.1 % flips)."""
     one_camera = len(getattr(problem, "views", None) or [None]) == 1  # several cameras see depth
     if problem.measurement is not None and problem.tracks is not None and one_camera and sparse_keyframes(problem):
-        return hypotheses_start(problem)
+        return lifted_start(problem) if lifted and has_lifted(problem) else hypotheses_start(problem)
     if problem.keyframes is not None and len(problem.keyframes):
         return keyframe_start(problem)
     return rest_start(problem)
@@ -72,6 +77,7 @@ _STARTS: dict[str, Start] = {
     "keyframes": keyframe_start,
     "planarity": planarity_start,
     "hypotheses": hypotheses_start,
+    "lifted": lifted_start,
     "markers": marker_start,
 }
 
