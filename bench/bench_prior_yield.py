@@ -4,9 +4,10 @@ Rows, each scored against the true motion (keypoint MPJPE, mm, in the clip's wor
 cases have 3D keyframes or a lifted pose that fix the depth):
 
 * ``walk, engine``: bench_engine's problem (``synthetic.human_walk``, one orthographic view
-  45 degrees from side-on, 1 px, 3D point keyframes every 8 frames at 2 cm), solved from
-  ``build_problem``'s start with ``calibrate="none"``: the solve with the default prior, then
-  ``yield_to_data`` (what the stage runs after a solve), against the solve without a prior;
+  45 degrees from side-on, 1 px, 3D point keyframes every 8 frames at 2 cm) with
+  ``calibrate="none"``, solved from the keyframes' start: the problem as ``make_problem`` builds it
+  (the prior held), against ``build_problem``'s (the prior adapted to the keyframes' start, as
+  reconstruct's ``solve`` stage does) and the solve without a prior;
 * ``walk, reconstruct``: the same inputs through ``reconstruct`` (its defaults: the limbs'
   lengths calibrated, the start the keyframes' poses, the prior adapted to them first);
 * ``random motion``: test_prior_switch's clip no prior knows (40 frames, perspective,
@@ -44,9 +45,11 @@ from bench_real import score, tracked_case  # noqa: E402
 from provenance import provenance  # noqa: E402
 
 import pinrecon as pr  # noqa: E402
-from pinrecon.prior_yield import yield_to_data  # noqa: E402
+from pinrecon.prior_yield import prior_conflict  # noqa: E402
+from pinrecon.problem import make_problem  # noqa: E402
 from pinrecon.reconstruct import build_problem  # noqa: E402
 from pinrecon.solver import solve  # noqa: E402
+from pinrecon.starts import initial_trajectory  # noqa: E402
 from pinrecon.synthetic import (  # noqa: E402
     COCO_BODY_FROM_CMU,
     bundled_motion,
@@ -82,12 +85,13 @@ def walk(n):
 def engine_row(n):
     fig, q, cam, tracks, keys = walk(n)
     truth = fig.keypoints(q)
-    s = build_problem(fig, tracks, cam, keys, calibrate="none")
-    res = solve(s.problem, s.q0, active=s.active)
+    held = make_problem(fig, tracks, cam, keys, calibrate="none")
+    res = solve(held, initial_trajectory(held, "auto"), active=held.active)
     t0 = time.perf_counter()
-    res2 = solve(s.problem, s.q0, active=s.active)
-    _, out, conflict = yield_to_data(s.problem, res2)
+    s = build_problem(fig, tracks, cam, keys, calibrate="none")
+    out = solve(s.problem, s.q0, active=s.active)
     dt = time.perf_counter() - t0
+    conflict = prior_conflict(held, s.q0)
     f = build_problem(fig, tracks, cam, keys, calibrate="none", weights=NO_PRIOR)
     free = solve(f.problem, f.q0, active=f.active)
     return (f"walk, engine ({n} frames)", _mm(fig.keypoints(res.x), truth), _mm(fig.keypoints(out.x), truth),

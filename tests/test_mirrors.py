@@ -127,7 +127,7 @@ def test_a_mirrored_arm_span_is_turned_back(arm_case):
     here its mirror is the cheaper, 1060 against 1080 nats)."""
     fig, Q, cam, problem, options, wrong, truth, span = arm_case
     flips, counted = _arm_flips(fig, fig.normalize(wrong.x), Q, cam, span)
-    assert counted.min() >= 20 and flips[0] >= 0.5 * counted[0]  # the solve alone keeps the upper arm mirrored (18 of 30)
+    assert counted.min() >= 20 and flips[0] >= 0.8 * counted[0]  # the solve alone keeps the upper arm mirrored
     out = mirror_stage(problem, wrong, options)
     flips, counted = _arm_flips(fig, fig.normalize(out.x), Q, cam, span)
     assert flips[0] == 0
@@ -137,8 +137,7 @@ def test_a_mirrored_arm_span_is_turned_back(arm_case):
     kept = rows[np.isfinite(rows[:, 4])]
     arm = labels.index("left_shoulder-left_elbow-left_wrist")
     assert labels and not any("ankle" in s for s in labels)  # the legs are left to the start
-    # the span the solve alone left mirrored (it turned frames 35-44 back by itself): frames 17-34
-    assert any(int(c) == arm and a <= span[0] + 5 and b - a >= 15 for c, _, a, b, _ in kept)
+    assert any(int(c) == arm and a <= span[0] + 5 and b >= span[1] - 5 for c, _, a, b, _ in kept)
     assert np.all(kept[:, 4] > 1.0) and np.all(np.isnan(rows[~np.isfinite(rows[:, 4]), 4]))
     lines = pr.Result.faults_summary(SimpleNamespace(extras=ex, fps=30.0, figure=None))
     assert any(s.startswith("limb spans mirrored after the solve") for s in lines)

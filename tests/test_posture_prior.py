@@ -73,7 +73,7 @@ def _prior_cost_by_hand(table, fig, Q, scale, huber=None, cauchy=False):
         cost = 0.5 * huber**2 * np.log(1.0 + (dist / huber) ** 2)
     else:
         cost = np.where(dist <= huber, 0.5 * dist**2, huber * dist - 0.5 * huber**2)
-    return (cost + const).min(axis=1) + _diag_cost(table, fig, Q, scale, huber, cauchy)
+    return (cost + const).min(axis=1) + _diag_cost(table, fig, Q, scale)
 
 
 def _components_by_hand(table, fig, Q, scale):
@@ -95,10 +95,9 @@ def _components_by_hand(table, fig, Q, scale):
     return np.stack(dist, 1), (np.array(const) - min(const)) / scale**2  # the density tempered by scale^2
 
 
-def _diag_cost(table, fig, Q, scale, huber=None, cauchy=False, rows=False):
+def _diag_cost(table, fig, Q, scale):
     """Per frame: 0.5 * the squared z / scale^2 of the joints outside the correlated ones
-    (the file's mean and std, or the rest pose and 1 rad); with ``huber``, each joint's own
-    Huber (or Cauchy) loss of ``|z|``; ``rows``: 0.5 |r|^2 of the reweighted rows instead."""
+    (the file's mean and std, or the rest pose and 1 rad)."""
     m = fig.model
     q_of = {m.names[j]: m.idx_qs[j] for j in range(1, m.njoints) if m.nqs[j] == 1}
     corr = table["correlated"]["joints"]
@@ -107,15 +106,7 @@ def _diag_cost(table, fig, Q, scale, huber=None, cauchy=False, rows=False):
     for name, iq in q_of.items():
         if name not in corr:
             mean, std = table["joints"].get(name, (rest[iq], 1.0))
-            z = np.abs(Q[:, iq] - mean) / (scale * std)
-            if huber is None:
-                cost += 0.5 * z**2
-            elif cauchy:
-                cost += 0.5 * z**2 / (1.0 + (z / huber) ** 2) if rows else 0.5 * huber**2 * np.log1p((z / huber) ** 2)
-            elif rows:
-                cost += 0.5 * z**2 * np.where(z <= huber, 1.0, huber / np.maximum(z, 1e-300))
-            else:
-                cost += np.where(z <= huber, 0.5 * z**2, huber * z - 0.5 * huber**2)
+            cost += 0.5 * ((Q[:, iq] - mean) / (scale * std)) ** 2
     return cost
 
 
@@ -155,7 +146,7 @@ def test_posture_row_of_the_human_by_hand(model):
     dist, const = _components_by_hand(table, fig, Q, 2.0)
     k = np.argmin(0.5 * 9.0 * np.log1p(dist**2 / 9.0) + const, axis=1)  # each frame's component under the loss
     m, c = dist[np.arange(len(Q)), k], const[k]
-    np.testing.assert_allclose(0.5 * (blk.r**2).sum(1), 0.5 * m**2 / (1.0 + m**2 / 9.0) + c + _diag_cost(table, fig, Q, 2.0, 3.0, True, rows=True),
+    np.testing.assert_allclose(0.5 * (blk.r**2).sum(1), 0.5 * m**2 / (1.0 + m**2 / 9.0) + c + _diag_cost(table, fig, Q, 2.0),
                                rtol=1e-9)
     with pytest.raises(InputError, match="pose_prior_loss"):
         Weights(pose_prior_loss="tukey")

@@ -8,9 +8,11 @@ import pytest
 
 import pinrecon as pr
 from pinrecon.prior_yield import CONFLICT, prior_conflict, yield_to_data
+from pinrecon.problem import make_problem
 from pinrecon.reconstruct import build_problem
 from pinrecon.rows.posture import PosePrior
 from pinrecon.solver import solve
+from pinrecon.starts import initial_trajectory
 from pinrecon.synthetic import human_walk, point_keyframes, project_tracks, side_camera
 
 
@@ -35,24 +37,31 @@ def dense_walk():
     return _walk(300)
 
 
+def _held(fig, tracks, cam, keys):
+    """The problem with the default prior as its clips fitted it, and the keyframes' start."""
+    problem = make_problem(fig, tracks, cam, keys, calibrate="none")
+    return problem, initial_trajectory(problem, "auto")
+
+
 def test_the_prior_yields_to_dense_keyframes(dense_walk):
     fig, q, cam, tracks, keys = dense_walk
     free = build_problem(fig, tracks, cam, keys, calibrate="none", weights=pr.Weights(pose_prior=None))
     no_prior = _mm(fig, solve(free.problem, free.q0, active=free.active).x, q)
-    setup = build_problem(fig, tracks, cam, keys, calibrate="none")
-    res = solve(setup.problem, setup.q0, active=setup.active)
-    held = _mm(fig, res.x, q)
-    _, out, conflict = yield_to_data(setup.problem, res)
+    problem, q0 = _held(fig, tracks, cam, keys)
+    res = solve(problem, q0, active=problem.active)
+    _, out, conflict = yield_to_data(problem, res)  # after a solve: the stage 'yield'
+    setup = build_problem(fig, tracks, cam, keys, calibrate="none")  # at the start, as reconstruct's solve stage
+    adapted = solve(setup.problem, setup.q0, active=setup.active)
     assert no_prior < 12.0
-    assert held > no_prior + 8.0  # the prior alone overrides the keyframes ...
-    assert _mm(fig, out.x, q) < no_prior + 2.0  # ... and yields to them
+    assert _mm(fig, res.x, q) > no_prior + 30.0  # the prior held overrides the keyframes (75 against 11 mm) ...
+    assert _mm(fig, out.x, q) < no_prior + 5.0  # ... yields to them after the solve (14.6)
+    assert _mm(fig, adapted.x, q) < no_prior + 2.0  # ... and, adapted at their start, ends with them (11.4)
     assert "cervical flexion/extension" in conflict.conflicting  # the neck the prior's clips never bent
 
 
 def test_a_prior_that_fits_the_clip_is_kept(dense_walk):
     fig, q, cam, tracks, keys = dense_walk
-    setup = build_problem(fig, tracks, cam, keys, calibrate="none")
-    row = next(r for r in setup.problem.rows if isinstance(r, PosePrior))
+    row = next(r for r in _held(fig, tracks, cam, keys)[0].rows if isinstance(r, PosePrior))
 
     def at_the_prior_mean(fig, q):  # the walk's motion about the mean posture of the prior's clips
         q = q.copy()
@@ -61,12 +70,12 @@ def test_a_prior_that_fits_the_clip_is_kept(dense_walk):
         return q
 
     fig, q2, cam, tracks, keys = _walk(300, at_the_prior_mean)
-    setup = build_problem(fig, tracks, cam, keys, calibrate="none")
-    res = solve(setup.problem, setup.q0, active=setup.active)
-    conflict = prior_conflict(setup.problem, res.x)
+    problem, q0 = _held(fig, tracks, cam, keys)
+    res = solve(problem, q0, active=problem.active)
+    conflict = prior_conflict(problem, res.x)
     assert conflict.s2.max() < CONFLICT
-    problem, out, _ = yield_to_data(setup.problem, res)
-    assert out is res and problem is setup.problem
+    problem2, out, _ = yield_to_data(problem, res)
+    assert out is res and problem2 is problem
 
 
 def test_redundancy_is_the_share_the_data_decide(dense_walk):
@@ -75,14 +84,14 @@ def test_redundancy_is_the_share_the_data_decide(dense_walk):
     n = 24
     tracks = pr.Tracks(tracks.points[:n], tracks.names, tracks.fps)
     keys = point_keyframes(fig, q[:n], range(0, n, 8), sigma_m=0.02, seed=2)
-    setup = build_problem(fig, tracks, cam, keys, calibrate="none")
-    res = solve(setup.problem, setup.q0, active=setup.active)
-    est = prior_conflict(setup.problem, res.x, probes=400, seed=3)
+    problem, q0 = _held(fig, tracks, cam, keys)
+    res = solve(problem, q0, active=problem.active)
+    est = prior_conflict(problem, res.x, probes=400, seed=3)
     # exact: rebuild J and H densely from the row blocks
     from pinrecon.solver import flatten_blocks
 
-    blocks = flatten_blocks(setup.problem.evaluate(res.x, True))
-    nv = setup.problem.nv
+    blocks = flatten_blocks(problem.evaluate(res.x, True))
+    nv = problem.nv
     rows_J = []
     for b in blocks:
         for k in range(b.r.shape[0]):

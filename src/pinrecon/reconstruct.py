@@ -38,7 +38,7 @@ from .problem import (
 )
 from .result import Result, load_result
 from .rows import Measurement2D
-from .prior_yield import decided_by_keyframes
+from .prior_yield import adapt_prior, decided_by_keyframes
 from .rows.lifted import LiftedPose, disagreement_extras
 from .rows.posture import prior_for
 from .solver import SolveResult, SolverOptions, globals_of, solve
@@ -228,12 +228,16 @@ def build_problem(
     """The problem and its start, unsolved; see :func:`reconstruct` (solve it with
     ``solve(setup.problem, setup.q0, active=setup.active, g0=setup.g0)``). ``lifter``
     (``"auto"`` or a weights file) puts pinrecon's lifter's rows in from the start (reconstruct's
-    first solve has them only when its pose prior may not switch)."""
+    first solve has them only when its pose prior may not switch). With 3D keyframes dense enough
+    to be the start, the pose prior is adapted to them as reconstruct's ``solve`` stage does
+    (:func:`pinrecon.prior_yield.adapt_prior`)."""
     camera, mode, auto = _camera_and_mode(figure, tracks, camera, keyframes, calibrate, image_size)
     tracks = attach_lifter(figure, tracks, camera, lifter, intrinsics=auto is None)
     problem = make_problem(figure, tracks, camera, keyframes, fps_out=fps_out, weights=weights, keypoints=keypoints,
                            calibrate=mode, camera_pose=_pose_unknown(auto, mode, camera))
     q0 = initial_trajectory(problem, _start_name(init, seed))
+    if _yield_at_start(problem, keyframes, init, seed, ()):  # as reconstruct's solve stage: the prior adapted
+        problem, _ = adapt_prior(problem, q0, problem.g0, keyframes=True)
     return Setup(problem, q0, problem.active, problem.measurement, problem.fps, problem.camera, problem.g0)
 
 

@@ -89,12 +89,9 @@ class PosePrior(Posture):
     The component's constant is one more row (its Jacobian zero), so
     that ``0.5 |r|^2`` is the frame's cost; the chosen component may change between iterations.
 
-    With a robust loss, each joint outside ``qcorr`` pays ``rho`` of its own distance
-    ``|q - mean| / sigma`` too (a prior tolerant of its own errors: a joint its clips never
-    moved is pulled back with a bounded force, not a spring). Robust losses are reweighted rows
-    (as the measurement's): the rows are scaled by ``sqrt(rho'(m) / m)`` and the block reports
-    the true cost. :meth:`adapted` widens and re-centres the rows for one clip
-    (:mod:`pinrecon.prior_yield`). The rows of every correlated
+    Robust losses are reweighted rows (as the measurement's): the rows are scaled by
+    ``sqrt(rho'(m) / m)`` and the block reports the true cost. :meth:`adapted` widens and
+    re-centres the rows for one clip (:mod:`pinrecon.prior_yield`). The rows of every correlated
     joint are written (a joint that is not ``active`` enters at its current value, i.e. the
     conditional Gaussian of the active ones); the Jacobian covers the active columns.
     """
@@ -204,10 +201,8 @@ class PosePrior(Posture):
         cv = None
         if self.k is not None:  # the robust loss on the frame's distance m, reweighted rows
             rho, sw = self._robust(np.linalg.norm(rc, axis=1))
-            rho_d, sw_d = self._robust(np.abs(rd))  # each joint outside the correlated ones alone
-            cv = float(rho.sum() + const.sum() + rho_d.sum())
+            cv = float(rho.sum() + const.sum() + 0.5 * (rd**2).sum())
             rc = rc * sw[:, None]
-            rd = rd * sw_d
         parts = [rd, rc] + ([np.sqrt(2.0 * const)[:, None]] if mixed else [])  # the component's constant
         r = np.concatenate(parts, axis=1)
         J = None
@@ -219,7 +214,6 @@ class PosePrior(Posture):
             else:
                 w_rows = np.ones((N, nr))
                 if self.k is not None:
-                    w_rows[:, :nd] = sw_d
                     w_rows[:, nd:nd + dc] = sw[:, None]
                 J = (w_rows[:, :, None] * Jf[best])[:, None]
         return RowBlock(self.frames[:, None], r, J, self.cols, self.name, cost_value=cv)
@@ -247,9 +241,8 @@ class PosePrior(Posture):
         component's with that component's constant)."""
         rd, rc, const, _ = self._residuals(np.asarray(Q, float))
         m = np.linalg.norm(rc, axis=1)
-        if self.k is None:
-            return 0.5 * m**2 + const + 0.5 * (rd**2).sum(axis=1)
-        return self._robust(m)[0] + const + self._robust(np.abs(rd))[0].sum(axis=1)
+        rho = 0.5 * m**2 if self.k is None else self._robust(m)[0]
+        return rho + const + 0.5 * (rd**2).sum(axis=1)
 
 
 def pose_prior(figure, rest: np.ndarray, name: str = "human_pose") -> tuple[np.ndarray, np.ndarray]:
