@@ -5,8 +5,9 @@ walking (the bundled CMU walk retargeted onto it and looped, `pinrecon.synthetic
 human_walk`), 30 fps, seen by an orthographic camera 45 degrees from side-on with 1 px
 noise, with all four row kinds of DiFranco et al.: 2D measurements, joint-limit
 barriers, constant-velocity smoothing, and 3D point keyframes (2 cm) every 8 frames,
-plus pinrecon's weak posture prior. Start: the keyframes' poses interpolated (what
-`reconstruct` does).
+plus the generic human's pose prior, adapted to the keyframes' start where they disagree with
+it (``pinrecon.prior_yield``; ``build_problem`` does it as ``reconstruct`` does). Start: the
+keyframes' poses interpolated (what `reconstruct` does).
 
 1. Speed at 1000 frames: time to convergence (pinrecon's own termination: relative
    cost decrease below 1e-4), iterations, accuracy.
@@ -346,24 +347,11 @@ def speed_table(n_frames, repeats=5):
             f"| {label} | **{med:.2f} s** | {cpu:.2f} s | {res.time:.2f} s | {res.iterations} | {res.status} | "
             f"{med / res.iterations:.3f} s | {res.cost:.1f} | {mpjpe_mm(fig, res.x, q):.1f} mm |"
         )
-    from pinrecon.prior_yield import yield_to_data  # what reconstruct's stage "yield" runs next
-
-    runs = []
-    for _ in range(repeats):
-        c0 = time.process_time()
-        res, _ = run_pinrecon(setup)
-        _, out, conflict = yield_to_data(setup.problem, res)
-        runs.append((time.process_time() - c0, out))
-    cpus = np.array([c for c, _ in runs])
-    med = float(np.median(cpus))
-    out = min(runs, key=lambda r: r[0])[1]
-    print(f"| default, then the pose prior's yield (`pinrecon.prior_yield`: widened on "
-          f"{len(conflict.conflicting)} joints) | **{med:.2f} s** | {cpus.min():.2f} s | | {res.iterations} + "
-          f"{out.iterations} | {out.status} | | {out.cost:.1f} | {mpjpe_mm(fig, out.x, q):.1f} mm |")
     free = build(n_frames, weights_none=True)[2]
     res, _ = run_pinrecon(free)
     print(f"\nWithout the pose prior (`Weights(pose_prior=None)`), default termination: "
-          f"{res.iterations} iterations, MPJPE {mpjpe_mm(fig, res.x, q):.1f} mm.")
+          f"{res.iterations} iterations, MPJPE {mpjpe_mm(fig, res.x, q):.1f} mm. (`build_problem` adapts the pose "
+          "prior to these dense keyframes' start, as reconstruct does: `pinrecon.prior_yield`.)")
 
 
 def calibration_speed(n_frames, iterations=10, repeats=11):
