@@ -35,7 +35,8 @@ from .banded import ActiveNormalEquations, ArrowheadFactor
 from .rows.posture import PosePrior
 from .solver import flatten_blocks, globals_of, solve
 
-__all__ = ["CONFLICT", "PriorConflict", "adapt_prior", "decided_by_keyframes", "prior_conflict", "yield_to_data"]
+__all__ = ["CONFLICT", "PriorConflict", "adapt_prior", "decided_by_keyframes", "pose_prior_row", "prior_conflict",
+           "with_pose_prior", "yield_to_data"]
 
 #: a row group's variance factor past which the data are said to disagree with the prior: the
 #: estimate's own spread over a clip of a few hundred frames is about 0.1
@@ -67,6 +68,20 @@ def _prior_row(problem) -> tuple[int, PosePrior] | None:
         if isinstance(row, PosePrior):
             return i, row
     return None
+
+
+def pose_prior_row(problem) -> PosePrior | None:
+    """The problem's learned pose prior row (None without one)."""
+    found = _prior_row(problem)
+    return None if found is None else found[1]
+
+
+def with_pose_prior(problem, row: PosePrior):
+    """A copy of ``problem`` with ``row`` (over the problem's frames) for its pose prior row."""
+    i, _ = _prior_row(problem)
+    out = problem.with_rows([], after=len(problem.rows))  # a copy with its own list of rows
+    out.rows[i] = row if len(row.frames) == problem.n_frames else row.for_frames(problem.n_frames)
+    return out
 
 
 def prior_conflict(problem, x, g=None, *, probes: int = 16, seed: int = 0) -> PriorConflict | None:
@@ -117,11 +132,10 @@ def adapt_prior(problem, x, g=None, *, probes: int = 16, keyframes: bool = False
     ``conflict`` is None without a prior. ``keyframes``: ``x`` is the 3D keyframes' own poses,
     which then decide the poses the prior does not know (the adapted row says so:
     ``decided_by_keyframes``)."""
-    found = _prior_row(problem)
-    conflict = None if found is None else prior_conflict(problem, x, g, probes=probes)
+    row = pose_prior_row(problem)
+    conflict = None if row is None else prior_conflict(problem, x, g, probes=probes)
     if conflict is None or not conflict.conflicting:
         return problem, conflict
-    i, row = found
     nd = conflict.n_diag
     widen = np.sqrt(np.maximum(conflict.s2, 1.0))
     x = np.asarray(x, float)
@@ -131,16 +145,15 @@ def adapt_prior(problem, x, g=None, *, probes: int = 16, keyframes: bool = False
     centre_diag = row.q_ref[row.diag] + move * (x[:, row.qidx[row.diag]].mean(axis=0) - row.q_ref[row.diag])
     offset = x[:, row.qcorr].mean(axis=0) - row.means.mean(axis=0)
     centre_corr = float(np.mean(share[nd:])) * offset if hit[nd:].any() else None
-    adapted = problem.with_rows([], after=len(problem.rows))  # a copy with its own list of rows
-    adapted.rows[i] = row.adapted(widen[:nd], widen[nd:], centre_diag, centre_corr)  # same frames
-    adapted.rows[i].decided_by_keyframes = keyframes or row.decided_by_keyframes
-    return adapted, conflict
+    new = row.adapted(widen[:nd], widen[nd:], centre_diag, centre_corr)
+    new.decided_by_keyframes = keyframes or row.decided_by_keyframes
+    return with_pose_prior(problem, new), conflict
 
 
 def decided_by_keyframes(problem) -> bool:
     """Whether the problem's pose prior was adapted to 3D keyframes' poses (:func:`adapt_prior`)."""
-    found = _prior_row(problem)
-    return found is not None and found[1].decided_by_keyframes
+    row = pose_prior_row(problem)
+    return row is not None and row.decided_by_keyframes
 
 
 def yield_to_data(problem, res, options=None, callback=None, *, probes: int = 16, rounds: int = 3):

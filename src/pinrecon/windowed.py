@@ -49,8 +49,8 @@ from .errors import InputError
 from .faults import FaultReport, fault_stage
 from .identifiability import proportions_identifiability
 from .prior_yield import adapt_prior as adapt_to_keyframes
+from .prior_yield import decided_by_keyframes, pose_prior_row, with_pose_prior
 from .problem import make_problem
-from .rows.posture import PosePrior
 from .solver import SolveResult, SolverOptions, solve
 from .starts import initial_trajectory
 from .starts.mirrors import MirrorStage, mirror_stage
@@ -162,7 +162,7 @@ def solve_windowed(problem, start="auto", options: SolverOptions | None = None, 
         q0 = initial_trajectory(wp, start) if isinstance(start, str) else np.array(np.asarray(start, float)[: stretch + 1])
     if adapt_prior:  # ... the pose prior adapted to it, then held in every window
         wp = adapt_to_keyframes(wp, q0, wp.g0, keyframes=True)[0]
-        held_prior = next((r for r in wp.rows if isinstance(r, PosePrior) and r.decided_by_keyframes), None)
+        held_prior = pose_prior_row(wp) if decided_by_keyframes(wp) else None
     if problem.g0 is not None:  # ... the globals solved on it, then held in every window
         res = solve(wp, q0, options, callback, active=wp.active, g0=wp.g0)
         g_solved = res.g if res.g is not None else wp.g0
@@ -181,7 +181,7 @@ def solve_windowed(problem, start="auto", options: SolverOptions | None = None, 
         else:
             q0 = np.array(np.asarray(start, float)[a : e + 1])
         if held_prior is not None:
-            wp = _with_prior(wp, held_prior)
+            wp = with_pose_prior(wp, held_prior)
         if done_until >= a:  # warm: the frames shared with the previous window
             q0[: done_until - a + 1] = X[a : done_until + 1]
         res = solve(wp, q0, options, callback, active=wp.active)
@@ -244,14 +244,6 @@ def _flat(blocks):
             yield from _flat(b)
         elif b is not None:
             yield b
-
-
-def _with_prior(wp, prior):
-    """The window's problem with ``prior`` (the leading stretch's adapted pose prior) for its own."""
-    i = next(i for i, r in enumerate(wp.rows) if isinstance(r, PosePrior))
-    out = wp.with_rows([], after=len(wp.rows))
-    out.rows[i] = prior.for_frames(wp.n_frames)
-    return out
 
 
 def _window_problem(problem, a: int, e: int, *, free_globals: bool, g_held):
