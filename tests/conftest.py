@@ -134,3 +134,16 @@ def coco_walk():
     kf = keyframes_from_points(list(range(0, len(q), 15)), P + rng.normal(0.0, 0.05, P.shape), list(tracks.names),
                                0.05)
     return cam, tracks, P, kf
+
+
+@pytest.fixture
+def scratch(tmp_path):
+    """A scratch folder for the fuzzing tests: in memory when there is one (fuzzing.scratch_dir)."""
+    import shutil
+
+    from fuzzing import scratch_dir
+
+    path = scratch_dir(tmp_path)
+    yield path
+    if path != tmp_path:
+        shutil.rmtree(path, ignore_errors=True)

@@ -12,6 +12,7 @@ import pathlib
 import numpy as np
 import pytest
 from conftest import CMU_UNIT_M, WALK, data_path
+from fuzzing_files import SMALL_BVH  # the two-segment BVH the readers' fuzzing starts from too
 
 from pinrecon import (
     Figure,
@@ -331,28 +332,6 @@ def test_urdf_file_not_found(tmp_path):
 
 
 # ---------------------------------------------------------------- BVH
-SMALL_BVH = """HIERARCHY
-ROOT Hips
-{
-  OFFSET 0 0 0
-  CHANNELS 6 Xposition Yposition Zposition Zrotation Yrotation Xrotation
-  JOINT Leg
-  {
-    OFFSET 0 -4 0
-    CHANNELS 3 Zrotation Yrotation Xrotation
-    End Site
-    {
-      OFFSET 0 -4 0
-    }
-  }
-}
-MOTION
-Frames: 3
-Frame Time: 0.0333333
-0 0 0 0 0 0 0 0 0
-1 2 3 4 5 6 7 8 9
-1 2 3 4 5 6 7 8 9
-"""
 
 
 def bvh_file(tmp_path, text):

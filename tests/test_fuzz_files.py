@@ -10,14 +10,11 @@ value or a PinreconError, never another exception, NaN or a half-written export.
 
 from __future__ import annotations
 
-import shutil
-
 import pytest
-from fuzzing import scratch_dir
 from fuzzing_files import FILE_SEEDS, file_seeds, run_file_case
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given, settings
 from hypothesis import strategies as st
-from test_fuzz_loaders import DrawChooser
+from test_fuzz_loaders import SETTINGS, DrawChooser
 
 CASES = 40
 
@@ -29,20 +26,11 @@ def SEEDS():
     return file_seeds(data_file)
 
 
-@pytest.fixture
-def scratch(tmp_path):
-    path = scratch_dir(tmp_path)
-    yield path
-    if path != tmp_path:
-        shutil.rmtree(path, ignore_errors=True)
-
-
 @pytest.mark.parametrize("name", FILE_SEEDS)
 def test_readers_never_crash(name, scratch, SEEDS):
     outcomes = []
 
-    @settings(max_examples=CASES, deadline=None, derandomize=True, database=None,
-              suppress_health_check=list(HealthCheck))
+    @settings(max_examples=CASES, **SETTINGS)
     @given(st.data())
     def case(data):
         outcome, detail = run_file_case(name, SEEDS[name], DrawChooser(data), scratch)

@@ -13,10 +13,8 @@ the same cases every time; ``bench/bench_fuzz.py`` runs 50,000.
 
 from __future__ import annotations
 
-import shutil
-
 import pytest
-from fuzzing import CLI_SEEDS, LOADER_SEEDS, run_cli_case, run_loader_case, scratch_dir, seeds
+from fuzzing import CLI_SEEDS, LOADER_SEEDS, run_cli_case, run_loader_case, seeds
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -43,14 +41,6 @@ def SEEDS():
     from conftest import data_folder
 
     return seeds(data_folder("project-test-data/detectors"))
-
-
-@pytest.fixture
-def scratch(tmp_path):
-    path = scratch_dir(tmp_path)
-    yield path
-    if path != tmp_path:
-        shutil.rmtree(path, ignore_errors=True)
 
 
 @pytest.mark.parametrize("name", LOADER_SEEDS)
