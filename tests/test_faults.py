@@ -68,20 +68,38 @@ def test_auto_loss_is_robust_with_confidences():
 
 
 def test_every_swapped_frame_is_repaired(scene):
+    """The fault stage alone (the stage labels, which would relabel them first, off)."""
     fig, Q, cam, P, uv, keys = scene
     tracks = pr.Tracks(_swap(uv, SWAPPED), NAMES, FPS, np.full((T, len(NAMES)), 0.9))
-    res = _reconstruct(fig, tracks, cam, keys)
+    res = _reconstruct(fig, tracks, cam, keys, skip=("labels",))
     assert sorted(np.asarray(res.extras["repaired_frames"]).tolist()) == SWAPPED
+    assert "relabelled_frames" not in res.extras
     assert "left/right swaps repaired in 3 frames: 7, 23, 41" in res.summary()
     # after the repair the swapped frames are as accurate as the others
     err = np.linalg.norm(res.keypoints3d[:, fig.keypoint_index(NAMES)] - P, axis=-1).mean(axis=1)
     assert err[SWAPPED].mean() < 1.5 * np.median(err) + 0.01
 
 
+def test_swapped_frames_and_a_swapped_span_are_relabelled_before_the_solve(scene):
+    """By default the stage labels finds single swapped frames and a span of them (which a
+    solution following the labels cannot see) from the tracks' continuity."""
+    fig, _, cam, P, uv, keys = scene
+    swapped = SWAPPED + list(range(30, 38))
+    tracks = pr.Tracks(_swap(uv, swapped), NAMES, FPS, np.full((T, len(NAMES)), 0.9))
+    res = _reconstruct(fig, tracks, cam, keys)
+    assert np.asarray(res.extras["relabelled_frames"]).tolist() == sorted(swapped)
+    assert len(res.extras["repaired_frames"]) == 0  # nothing left for the fault stage
+    assert "other way round on frames 7, 23, 30-37, 41" in res.summary()
+    assert [s.name for s in res.stages][:2] == ["labels", "solve"]
+    err = np.linalg.norm(res.keypoints3d[:, fig.keypoint_index(NAMES)] - P, axis=-1).mean(axis=1)
+    assert err[swapped].mean() < 1.5 * np.median(err) + 0.01
+
+
 def test_no_repair_on_a_clean_clip(scene):
     fig, Q, cam, P, uv, keys = scene
     res = _reconstruct(fig, pr.Tracks(uv, NAMES, FPS, np.full((T, len(NAMES)), 0.9)), cam, keys)
     assert len(res.extras["repaired_frames"]) == 0
+    assert "relabelled_frames" not in res.extras and res.stages[0].changed == "skipped: nothing to do"
     assert len(res.extras["outlier_frames"]) == 0
 
 

@@ -13,6 +13,18 @@ the solution to look at every frame again:
   labelling is cheaper by more than ``margin`` nats. Repaired frames get their labels
   exchanged in the measurement rows (and ``problem.tracks``) and the problem is solved
   again from the current estimate (warm), twice at most.
+* **Spans** (:func:`side_swap_frames`, before any solve): a detector sometimes keeps a
+  person's sides the other way round for a span of frames (MediaPipe did for 33 frames of
+  Pose2Sim's trial), which a solution that follows the labels cannot see. The tracks' own
+  continuity can: at a span's edges every left/right pair jumps by the person's width, while
+  the other labelling moves on smoothly. Each frame gets a label (kept or exchanged) by a
+  dynamic programme over the clip; its cost is the pairs' capped displacement between frames
+  1, 2 and 3 apart and their acceleration over three frames, so a person turning through
+  side-on (where left and right cross in the image) keeps its labels: only the exchanged
+  labelling makes that crossing a kink. The labelling that agrees with the detector on most
+  frames is taken as right. :func:`relabel_sides` exchanges the labels of those frames. A
+  lifter's 3D is judged by its own continuity (MediaPipe's world landmarks keep the sides as
+  its 2D does; another lifter's need not).
 * **Outliers** (:func:`find_outliers`): observed points whose reprojection error after
   convergence exceeds ``max(5 sigma_px, median + 5 MAD-sigma)`` of all points' errors
   are reported (frame, name, error); they are left in, down-weighted by the loss.
@@ -32,8 +44,8 @@ import numpy as np
 from .rows.lifted import LiftedPose
 from .solver import SolveResult, SolverOptions, globals_of, solve
 
-__all__ = ["FaultReport", "detect_swaps", "fault_stage", "find_outliers", "left_right_pairs", "repair_swaps",
-           "report_outliers"]
+__all__ = ["FaultReport", "detect_swaps", "fault_stage", "find_outliers", "left_right_pairs", "relabel_sides",
+           "repair_swaps", "report_outliers", "side_swap_frames"]
 
 _SIDES = (("left_", "right_"), ("Left", "Right"), ("left", "right"), ("l_", "r_"), ("L", "R"))
 
@@ -49,6 +61,135 @@ def left_right_pairs(names) -> list[tuple[int, int]]:
                 out.append((i, pos[ro + n[len(lo):]]))
                 break
     return out
+
+
+#: the cost of one exchange of the labels between two frames, in the person's sizes of
+#: displacement (:func:`side_swap_frames`)
+SWITCH_COST = 0.3
+#: the weight of the acceleration term against the displacements (:func:`side_swap_frames`):
+#: at 1, a fast spin seen at 20-40 frames/s had a span relabelled in 3 of 216 synthetic
+#: cases (bench/bench_side_swaps.py); at 2 and 3 none, and the real span still found
+ACCELERATION = 2.0
+
+
+def _pair_terms(points: np.ndarray, pairs) -> list[tuple[tuple[int, ...], np.ndarray]]:
+    """The continuity terms of :func:`side_swap_frames`: ``(offsets, cost)`` with ``cost[t, i]``
+    the capped displacement (person sizes) of every left/right pair between the frames
+    ``t + offsets`` when the labels differ as pattern ``i`` says (two frames: same, exchanged;
+    three frames, the acceleration: bit 1 the middle frame exchanged from the first, bit 0 the
+    last)."""
+    P = np.asarray(points, float)
+    seen_any = np.isfinite(P[..., 0]).any(axis=1)
+    if not seen_any.any():
+        return []
+    Q = P[seen_any]
+    size = float(np.median(np.linalg.norm(np.nanmax(Q, axis=1) - np.nanmin(Q, axis=1), axis=-1)))
+    if not size > 0.0:
+        return []
+    a, b = np.array(pairs).T
+    A, B = P[:, a], P[:, b]
+    seen = np.isfinite(A[..., 0]) & np.isfinite(B[..., 0])
+    cap = 0.5 * size
+
+    def total(e, ok):
+        return np.where(ok, np.minimum(e, cap), 0.0).sum(axis=1) / size
+
+    terms = []
+    for k in (1, 2, 3):
+        ok = seen[:-k] & seen[k:]
+        same = np.linalg.norm(A[k:] - A[:-k], axis=-1) + np.linalg.norm(B[k:] - B[:-k], axis=-1)
+        swapped = np.linalg.norm(A[k:] - B[:-k], axis=-1) + np.linalg.norm(B[k:] - A[:-k], axis=-1)
+        terms.append(((0, k), np.stack([total(same, ok), total(swapped, ok)], axis=1)))
+    ok = seen[:-2] & seen[1:-1] & seen[2:]
+    acc = []
+    for mid in (0, 1):
+        for last in (0, 1):
+            m = (B[1:-1], A[1:-1]) if mid else (A[1:-1], B[1:-1])
+            n = (B[2:], A[2:]) if last else (A[2:], B[2:])
+            e = sum(np.linalg.norm(n[i] - 2.0 * m[i] + (A, B)[i][:-2], axis=-1) for i in (0, 1))
+            acc.append(ACCELERATION * total(e, ok))
+    terms.append(((0, 1, 2), np.stack(acc, axis=1)))
+    return terms
+
+
+def side_swap_frames(tracks) -> np.ndarray:
+    """Frames (indices into ``tracks``) whose left/right labels are the other way round from
+    the rest of the clip, judged by the tracks' continuity alone (see the module's
+    docstring); empty when the names have no left/right pairs or the clip is shorter than
+    four frames. The labelling that holds on most frames is taken as right."""
+    pairs = left_right_pairs(list(tracks.names))
+    T = int(tracks.points.shape[0])
+    if not pairs or T < 4:
+        return np.zeros(0, int)
+    terms = _pair_terms(tracks.points, pairs)
+    if not terms:
+        return np.zeros(0, int)
+    # windows of four frames' labels (bits: frame t-3 .. t); every term ends at the window's last frame
+    full = np.array([[(w >> (3 - i)) & 1 for i in range(4)] for w in range(16)])
+    step = np.zeros((T, 16))
+    for offs, cost in terms:
+        span = offs[-1]
+        first = full[:, 3 - span]
+        if len(offs) == 2:
+            pattern = (full[:, 3] != first).astype(int)
+        else:
+            pattern = 2 * (full[:, 3 - span + 1] != first) + (full[:, 3] != first)
+        step[span:span + len(cost)] += cost[:, pattern]
+    step += SWITCH_COST * (full[:, 3] != full[:, 2])
+    # the first three frames: the terms inside them (those whose first frame is not before 0)
+    start = np.zeros(8)
+    for w in range(8):
+        lab = [(w >> (2 - i)) & 1 for i in range(3)]
+        for offs, cost in terms:
+            span = offs[-1]
+            for t in range(span, 3):
+                if t - span >= 0 and t - span < len(cost):
+                    if len(offs) == 2:
+                        start[w] += cost[t - span, int(lab[t] != lab[t - span])]
+                    else:
+                        start[w] += cost[t - span, 2 * int(lab[t - 1] != lab[t - 2]) + int(lab[t] != lab[t - 2])]
+        start[w] += SWITCH_COST * ((lab[0] != lab[1]) + (lab[1] != lab[2]))
+    value, back = start, np.zeros((T, 8), int)
+    prev_of = np.array([[(w >> 1), (w >> 1) | 4] for w in range(8)])  # the windows a window follows
+    for t in range(3, T):
+        cand = value[prev_of] + step[t][(prev_of << 1 & 8) | np.arange(8)[:, None]]
+        pick = np.argmin(cand, axis=1)
+        back[t] = prev_of[np.arange(8), pick]
+        value = cand[np.arange(8), pick]
+    w = int(np.argmin(value))
+    labels = np.zeros(T, int)
+    for t in range(T - 1, 2, -1):
+        labels[t] = w & 1
+        w = back[t, w]
+    labels[:3] = [(w >> 2) & 1, (w >> 1) & 1, w & 1]
+    if labels.sum() > T / 2:
+        labels = 1 - labels
+    return np.flatnonzero(labels)
+
+
+def relabel_sides(tracks, frames, lifted_frames=None):
+    """A copy of ``tracks`` with every left/right pair's labels exchanged at ``frames``, and
+    the lifted pose's (when the tracks carry one) at ``lifted_frames`` (default ``frames``:
+    a detector's own 3D keeps the sides as its 2D does)."""
+    from dataclasses import replace
+
+    frames = np.asarray(frames, int)
+    lifted_frames = frames if lifted_frames is None else np.asarray(lifted_frames, int)
+    _, perm = _permutation(list(tracks.names))
+    points = np.array(tracks.points, float)
+    points[frames] = points[frames][:, perm]
+    conf = None
+    if tracks.confidence is not None:
+        conf = np.array(tracks.confidence, float)
+        conf[frames] = conf[frames][:, perm]
+    lifted = getattr(tracks, "lifted", None)
+    if lifted is not None:
+        _, lperm = _permutation(list(lifted.names))
+        lp, lc = np.array(lifted.points, float), np.array(lifted.confidence, float)
+        f = lifted_frames
+        lp[f], lc[f] = lp[f][:, lperm], lc[f][:, lperm]
+        lifted = replace(lifted, points=lp, confidence=lc)
+    return replace(tracks, points=points, confidence=conf, lifted=lifted)
 
 
 def _rho(meas, e2):

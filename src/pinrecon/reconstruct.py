@@ -355,6 +355,7 @@ def _result(run: Run, reports) -> Result:
         result.extras.update(switch_extras(*run.switch))
     if run.conflict is not None:
         result.extras.update(run.conflict.to_extras())
+    result.extras.update(run.relabelled)
     result.stages = reports
     return result
 

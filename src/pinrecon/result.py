@@ -29,6 +29,16 @@ from .solver import SolveResult
 __all__ = ["Result", "StageReport", "check_motion", "hypothesis_spans", "load_result"]
 
 
+def spans_text(frames) -> str:
+    """Frames as ranges: ``41-63, 65, 67-73``."""
+    f = np.asarray(frames, int)
+    if not len(f):
+        return ""
+    cut = np.flatnonzero(np.diff(f) > 1)
+    starts, ends = f[np.r_[0, cut + 1]], f[np.r_[cut, len(f) - 1]]
+    return ", ".join(str(a) if a == b else f"{a}-{b}" for a, b in zip(starts, ends))
+
+
 @dataclass
 class StageReport:
     """What one stage did: its name, wall time (s), the MAP cost before and after (the
@@ -255,6 +265,13 @@ class Result:
                 lines.append(f"no learned pose prior in this solve, but {name!r} fits this figure: with detector "
                              f"tracks and few keyframes it decides most limb depths (--pose-prior-model {name}; "
                              "models/priors/README.md)")
+        f, g = (np.asarray(x.get(k, ()), int) for k in ("relabelled_frames", "relabelled_lifted_frames"))
+        if len(f) or len(g):
+            lines.append("the detector kept left and right the other way round on frames "
+                         f"{spans_text(f) or 'none'}" + ("" if np.array_equal(f, g) else
+                                                        f" (its 3D on frames {spans_text(g) or 'none'})")
+                         + " (the tracks' continuity says so): relabelled before the solve; --skip labels keeps "
+                         "the detector's labels")
         if "repaired_frames" in x:
             fr = np.asarray(x["repaired_frames"], int)
             shown = ", ".join(str(f) for f in fr[:20]) + (" ..." if len(fr) > 20 else "")

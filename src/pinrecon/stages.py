@@ -11,6 +11,9 @@ changed). A stage that has nothing to do returns ``None`` and is reported as ski
         print(r.name, r.seconds, r.cost_after - r.cost_before, r.changed)
 
 =========  ======================================================================================
+``labels`` spans of frames where the detector kept the person's left and right the other way
+           round, found by the tracks' continuity and relabelled before anything is solved
+           (:func:`pinrecon.faults.side_swap_frames`)
 ``solve``  the start (the rest pose placed on the tracks, or the keyframes, or the named start;
            :func:`pinrecon.starts.auto_start`: the multi-hypothesis search for one camera, the
            lifted start when the tracks carry a lifter's 3D; with one camera, the limbs'
@@ -53,10 +56,10 @@ import numpy as np
 
 from .contact import solve_on_the_floor
 from .errors import InputError
-from .faults import fault_stage, report_outliers
+from .faults import fault_stage, relabel_sides, report_outliers, side_swap_frames
 from .prior_yield import adapt_prior, yield_to_data
 from .problem import ReconstructionProblem, make_problem
-from .result import StageReport
+from .result import StageReport, spans_text
 from .solver import SolveResult, SolverOptions, solve
 from .starts import auto_start, initial_trajectory
 from .starts.camera_auto import settle_focal
@@ -68,8 +71,13 @@ from .unfamiliar import BROADER_PRIOR, broader_prior, unfamiliar_poses
 #: the focal stage's solves with lifted cues: at most this many iterations each (bench_stages:
 #: the same PA-MPJPE and flips on the five clips, the stage 30 % shorter on Pose2Sim's trial)
 FOCAL_ITERATIONS_LIFTED = 10
+#: with lifted cues, where the focal length's cost profile is no valley, the focal stage moves it
+#: only within these multiples of the image's diagonal (fields of view of about 36-118 degrees):
+#: bench_lifted_real's Pose2Sim camera 3 went down such a profile to 3.1 diagonals (6876 px, the
+#: calibration's 1682) and 92.9 mm, 86.6 with the solve's own 2789 px kept
+FOCAL_PLAUSIBLE = (0.3, 1.5)
 
-__all__ = ["STAGES", "StageReport", "Run", "run_stages", "check_skip"]
+__all__ = ["STAGES", "Run", "StageReport", "check_skip", "relabel_spans", "run_stages"]
 
 
 @dataclass
@@ -102,7 +110,42 @@ class Run:
     judge: str | None = None
     feet: object = None
     conflict: object = None  # the pose prior's variance factors (pinrecon.prior_yield.PriorConflict)
+    relabelled: dict = field(default_factory=dict)  # extras key -> tracks frames relabelled by the stage labels
     caught: list = field(default_factory=list)
+
+
+def relabel_spans(tracks):
+    """``(tracks, frames, lifted)``: the tracks (or list of them, one per camera) with the
+    frames whose left and right labels are the other way round relabelled
+    (:func:`pinrecon.faults.side_swap_frames`; a lifter's 3D on the tracks by its own
+    continuity), and those frames per camera (lists: the 2D's, the 3D's)."""
+    several = isinstance(tracks, (list, tuple))
+    out, frames, lifted = [], [], []
+    for t in tracks if several else [tracks]:
+        f = side_swap_frames(t)
+        g = side_swap_frames(t.lifted) if t.lifted is not None else np.zeros(0, int)
+        out.append(relabel_sides(t, f, g) if len(f) or len(g) else t)
+        frames.append(f)
+        lifted.append(g)
+    return (out if several else out[0]), frames, lifted
+
+
+def _labels(run: Run) -> str | None:
+    tracks, frames, lifted = relabel_spans(run.inputs["tracks"])
+    if not any(len(f) for f in frames + lifted):
+        return None
+    run.inputs["tracks"] = tracks
+    run.problem = make_problem(**run.inputs, calibrate=run.mode)
+    names = run.problem.camera_names if len(frames) > 1 else [""]
+    said = []
+    for v, (f, g) in enumerate(zip(frames, lifted)):
+        prefix = "" if v == 0 else f"{names[v]}_"
+        run.relabelled[prefix + "relabelled_frames"] = np.asarray(f, int)
+        run.relabelled[prefix + "relabelled_lifted_frames"] = np.asarray(g, int)
+        if len(f) or len(g):
+            said.append((f"{names[v]}: " if v else "") + (spans_text(f) or "none")
+                        + ("" if np.array_equal(f, g) else f" (its 3D: {spans_text(g) or 'none'})"))
+    return f"left and right exchanged back on frames {'; '.join(said)}"
 
 
 def _solve(run: Run) -> str:
@@ -201,7 +244,10 @@ def _focal(run: Run) -> str | None:
     options = run.options
     if _cued(run):  # the lifted cues hold the poses: a few steps settle each point of the valley
         options = replace(options or SolverOptions(), max_iterations=FOCAL_ITERATIONS_LIFTED)
-    run.res, run.auto = settle_focal(run.problem, run.res, run.auto, options=options)
+    span = None
+    if _cued(run) and run.auto.get("image_size"):  # a profile that is no valley moves only to plausible lengths
+        span = tuple(f * float(np.hypot(*run.auto["image_size"])) for f in FOCAL_PLAUSIBLE)
+    run.res, run.auto = settle_focal(run.problem, run.res, run.auto, options=options, undetermined_range=span)
     if run.res is before:
         return "focal length at the bottom of its valley"
     report_outliers(run.problem, run.res)  # restarted down the valley: the outliers of where it ended
@@ -221,6 +267,7 @@ def _feet(run: Run) -> str | None:
 
 #: The stages in the order they run: name -> function of the :class:`Run`.
 STAGES: dict[str, Callable[[Run], str | None]] = {
+    "labels": _labels,
     "solve": _solve,
     "prior": _prior,
     "yield": _yield,

@@ -501,7 +501,7 @@ def check_focal(problem, res, auto: dict | None, **kw) -> dict | None:
 
 def settle_focal(problem, res, auto: dict | None, *, options=None, rounds: int = 3, min_gain: float = 0.5,
                  steps: Sequence[float] = PROFILE_STEPS, tolerance: float = 0.1,
-                 threshold: float = PROFILE_THRESHOLD):
+                 threshold: float = PROFILE_THRESHOLD, undetermined_range: tuple[float, float] | None = None):
     """``(res, auto)``: the solve carried to the bottom of its focal length's cost profile,
     and :func:`check_focal`'s description of it.
 
@@ -511,7 +511,10 @@ def settle_focal(problem, res, auto: dict | None, *, options=None, rounds: int =
     16 nats lower at +4 %). The profile of :func:`focal_profile` walks that valley; where
     one of its points is more than ``min_gain`` nats lower than the solve, the solve starts
     again from the lowest with the focal length free (at most ``rounds`` times). The
-    report is the last profile's (``threshold``, ``tolerance``: :func:`profile_interval`)."""
+    report is the last profile's (``threshold``, ``tolerance``: :func:`profile_interval`).
+    ``undetermined_range`` ``(lo, hi)`` px: when the first profile is no valley (the focal
+    length NOT determined), the solve moves only to its points inside that range (a valley
+    that does not determine the focal length says nothing against a plausible one)."""
     if not auto or auto.get("projection") != "perspective":
         return res, auto
     from ..solver import solve
@@ -519,8 +522,11 @@ def settle_focal(problem, res, auto: dict | None, *, options=None, rounds: int =
     solves = _profile_solves(problem, res, steps, options)
     if solves is None:
         return res, auto
+    lo, hi = 0.0, np.inf
+    if undetermined_range is not None and not _report(problem, res, solves, threshold, tolerance).determined:
+        lo, hi = undetermined_range
     for _ in range(rounds):
-        _, cost, Q, g = min(solves, key=lambda s: s[1])
+        _, cost, Q, g = min([x for x in solves if lo <= x[0] <= hi] or solves[:1], key=lambda s: s[1])
         if cost >= res.cost - min_gain:
             break
         res = solve(problem, Q, options, active=problem.active, g0=g)

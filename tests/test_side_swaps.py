@@ -1,0 +1,117 @@
+"""Spans of frames whose left and right labels a detector kept the other way round, found
+from the tracks' continuity before any solve (:func:`pinrecon.faults.side_swap_frames`).
+
+Ground truth independent of the code under test: synthetic clips whose swapped frames the
+test (or :func:`pinrecon.synthetic.detector_faults`, which logs them) wrote; and on real
+video, Pose2Sim's four-camera triangulation projected through camera 2's calibration: a
+frame is swapped where MediaPipe's labels lie nearer the other side's projected points.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import data_file, data_path
+
+import pinrecon as pr
+from pinrecon.faults import left_right_pairs, relabel_sides, side_swap_frames
+from pinrecon.layouts import COCO_17
+from pinrecon.synthetic import (
+    bundled_motion,
+    coco_body_tracks,
+    detector_faults,
+    perspective_side_camera,
+)
+
+COCO12 = list(COCO_17[5:])
+
+
+def _swapped(tracks, frames):
+    uv = np.array(tracks.points)
+    conf = np.array(tracks.confidence)
+    for a, b in left_right_pairs(tracks.names):
+        uv[np.ix_(frames, [a, b])] = uv[np.ix_(frames, [b, a])]
+        conf[np.ix_(frames, [a, b])] = conf[np.ix_(frames, [b, a])]
+    return pr.Tracks(uv, tracks.names, tracks.fps, conf)
+
+
+@pytest.fixture(scope="module")
+def spin():
+    """CMU 05_11 (a dance with fast spins), 120 fps in the file."""
+    return bundled_motion("spin")
+
+
+@pytest.mark.parametrize("step, azimuth", [(2, 90.0), (3, 90.0), (3, 45.0), (6, 0.0), (6, 90.0)])
+def test_a_spin_keeps_its_labels_and_a_swapped_span_is_found(spin, step, azimuth):
+    """A dancer turning fast through side-on (left and right cross in the image) at 60, 40
+    and 20 frames/s is not a swap; the detector's single swapped frames and a span of 20
+    frames written here are found, exactly."""
+    fig, q, fps = spin
+    q = q[::step]
+    cam = perspective_side_camera(q, azimuth)
+    clean, _ = coco_body_tracks(fig, q, cam, fps=fps / step)
+    tracks, log = detector_faults(clean, seed=1)
+    single = log["swapped_frames"].tolist()
+    assert side_swap_frames(tracks).tolist() == single
+    span = [t for t in range(len(q) // 3, len(q) // 3 + 20) if t not in single]
+    got = side_swap_frames(_swapped(tracks, span)).tolist()
+    assert got == sorted(set(single) ^ set(span))
+
+
+def test_gaps_short_clips_and_names_without_sides():
+    fig, q, fps = bundled_motion("walk")
+    q = q[::2]
+    clean, _ = coco_body_tracks(fig, q, perspective_side_camera(q, 45.0), fps=fps / 2)
+    uv = np.array(clean.points)
+    uv[40:50] = np.nan  # the person not found for 10 frames, the labels swapped from 30 to 59
+    gap = pr.Tracks(uv, clean.names, clean.fps, np.where(np.isnan(uv[..., 0]), 0.0, 1.0))
+    assert side_swap_frames(gap).tolist() == []
+    got = side_swap_frames(_swapped(gap, list(range(30, 60)))).tolist()
+    assert set(range(30, 40)) | set(range(50, 60)) <= set(got) <= set(range(30, 60))
+    assert side_swap_frames(clean.frames(0, 3)).tolist() == []
+    unsided = pr.Tracks(np.ones((10, 2, 2)), ["nose", "neck"], 30.0)
+    assert side_swap_frames(unsided).tolist() == []
+
+
+def test_relabel_sides_exchanges_the_lifted_pose_too():
+    from pinrecon.lifted import Lifted
+
+    names = ["left_knee", "right_knee", "nose"]
+    P = np.arange(4 * 3 * 3, dtype=float).reshape(4, 3, 3)
+    uv = P[..., :2].copy()
+    tracks = pr.Tracks(uv, names, 30.0, np.full((4, 3), 0.5),
+                       lifted=Lifted(P, names, np.full((4, 3), 0.7), "camera", "test"))
+    out = relabel_sides(tracks, [1, 2])
+    assert np.array_equal(out.points[1], uv[1][[1, 0, 2]]) and np.array_equal(out.points[0], uv[0])
+    assert np.array_equal(out.lifted.points[2], P[2][[1, 0, 2]]) and np.array_equal(out.lifted.points[3], P[3])
+    assert np.array_equal(tracks.points, uv)  # a copy: the input is left as it was
+
+
+def test_mediapipe_keeps_the_sides_the_other_way_round_on_a_span_of_camera_2():
+    """MediaPipe Pose on the first 85 frames of Pose2Sim's camera 2: from frame 41 it keeps
+    the subject's left and right the other way round for 33 frames (a flicker back at 64 and
+    66), which the triangulation says and the tracks' continuity finds."""
+    pytest.importorskip("cv2")
+    pytest.importorskip("mediapipe")
+    from pinrecon.io.calibration import load_cameras
+    from pinrecon.io.trc import load_trc
+    from pinrecon.video import track_video
+
+    n = 85
+    tracks = track_video(data_file("pose2sim-balancing/videos/cam02.mp4"), max_frames=n).select(COCO12)
+    m = load_trc(data_path("pose2sim-balancing/pose-3d/S00_P00_T01_BalancingTrial_0-100.trc"), names="pinrecon")
+    G = m.points[:n, [m.names.index(c) for c in COCO12]]
+    cam = load_cameras(data_path("pose2sim-balancing/calibration/Calib_qualisys.toml"))[1]
+    assert cam.name == "cam_02"
+    uvG = cam.camera.project(G)
+    perm = np.arange(12)
+    for a, b in left_right_pairs(COCO12):
+        perm[a], perm[b] = b, a
+    kept = np.nanmean(np.linalg.norm(tracks.points - uvG, axis=-1), axis=1)
+    other = np.nanmean(np.linalg.norm(tracks.points[:, perm] - uvG, axis=-1), axis=1)
+    clear = np.abs(kept - other) > 30.0  # px: frames where MediaPipe's labelling is plain
+    truth = np.flatnonzero(clear & (other < kept))
+    assert len(truth) > 25 and truth.min() == 41
+    found = side_swap_frames(tracks)
+    assert np.array_equal(np.intersect1d(found, np.flatnonzero(clear)), truth)
+    assert len(np.setdiff1d(found, truth)) <= 2  # frames where MediaPipe's labels are neither
