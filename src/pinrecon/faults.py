@@ -67,8 +67,8 @@ def left_right_pairs(names) -> list[tuple[int, int]]:
 #: displacement (:func:`side_swap_frames`)
 SWITCH_COST = 0.3
 #: the weight of the acceleration term against the displacements (:func:`side_swap_frames`):
-#: at 1, a fast spin seen at 20-40 frames/s had a span relabelled in 3 of 216 synthetic
-#: cases (bench/bench_side_swaps.py); at 2 and 3 none, and the real span still found
+#: at 1, fast spins seen at 20-40 frames/s had spans relabelled wrongly in 12 of 216 synthetic
+#: cases (bench/bench_side_swaps.py); at 2 and 3 none, and Pose2Sim's real span still found
 ACCELERATION = 2.0
 
 
