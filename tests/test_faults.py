@@ -95,6 +95,18 @@ def test_swapped_frames_and_a_swapped_span_are_relabelled_before_the_solve(scene
     assert err[swapped].mean() < 1.5 * np.median(err) + 0.01
 
 
+def test_a_clip_solved_in_windows_is_relabelled_too(scene):
+    fig, _, cam, P, uv, keys = scene
+    swapped = list(range(30, 38))
+    tracks = pr.Tracks(_swap(uv, swapped), NAMES, FPS, np.full((T, len(NAMES)), 0.9))
+    res = _reconstruct(fig, tracks, cam, keys, window=30, floor="none")
+    assert [s.name for s in res.stages] == ["windowed"]
+    assert np.asarray(res.extras["relabelled_frames"]).tolist() == swapped
+    assert np.asarray(res.extras["relabelled_lifted_frames"]).tolist() == []
+    off = _reconstruct(fig, tracks, cam, keys, window=30, floor="none", skip=("labels",))
+    assert "relabelled_frames" not in off.extras
+
+
 def test_no_repair_on_a_clean_clip(scene):
     fig, Q, cam, P, uv, keys = scene
     res = _reconstruct(fig, pr.Tracks(uv, NAMES, FPS, np.full((T, len(NAMES)), 0.9)), cam, keys)

@@ -88,7 +88,7 @@ def add_reconstruct_options(r, *, inputs=None, camera_required: bool = True, fig
     add_pose_prior_argument(r)
     r.add_argument("--max-iterations", type=int, default=100)
     r.add_argument("--skip", nargs="+", default=(), metavar="STAGE",
-                   help="switch stages off by name: prior, yield, turns, mirrors, faults, focal, feet (the start and the "
+                   help="switch stages off by name: labels, prior, yield, turns, mirrors, faults, focal, feet (the start and the "
                    "solve always run; the summary lists every stage with its time and what it changed)")
     r.add_argument("--window", type=int, help="solve in overlapping windows of this many frames, in bounded memory "
                    "(default: windows of 2000 frames past 10000 frames; 0: one batch solve)")

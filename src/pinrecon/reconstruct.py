@@ -28,6 +28,7 @@ from .contact import foot_keypoints
 from .errors import InputError
 from .identifiability import proportions_identifiability
 from .lifter import DEFAULT_LIFTER, attach_lifter, resolve_lifter
+from .prior_yield import adapt_prior, decided_by_keyframes
 from .problem import (
     ReconstructionProblem,
     Weights,
@@ -38,11 +39,10 @@ from .problem import (
 )
 from .result import Result, load_result
 from .rows import Measurement2D
-from .prior_yield import adapt_prior, decided_by_keyframes
 from .rows.lifted import LiftedPose, disagreement_extras
 from .rows.posture import prior_for
 from .solver import SolveResult, SolverOptions, globals_of, solve
-from .stages import Run, StageReport, check_skip, run_stages
+from .stages import Run, StageReport, check_skip, relabel_spans, relabelled_extras, run_stages
 from .starts import available_starts, get_start, initial_trajectory, sparse_keyframes
 from .starts.camera_auto import (
     AutoCamera,
@@ -309,11 +309,27 @@ def reconstruct(
     if span:  # a long clip: windows in bounded memory (the fault stage runs in each)
         if floor is not None or contact is not None:
             raise InputError("the feet stage (floor, contact) needs one batch solve: pass window=0", field="window")
-        return _reconstruct_windowed(problem, inputs, mode, calibrate, auto, _start_name(init, seed), init, span,
-                                     default, limit, options, callback, lift, adapt)
+        problem, relabelled = _labels_up_front(problem, inputs, mode, skip)  # the windows run no stages
+        result = _reconstruct_windowed(problem, inputs, mode, calibrate, auto, _start_name(init, seed), init, span,
+                                       default, limit, options, callback, lift, adapt)
+        result.extras.update(relabelled)
+        return result
     run = _run(problem, inputs, mode, auto, init, seed, options, callback, default, limit, lengths_from_tracks,
                None if off else (floor, contact), contact_settings, lift, adapt)
     return _result(run, run_stages(run, skip, progress))
+
+
+def _labels_up_front(problem, inputs, mode, skip):
+    """``(problem, extras)``: the stage ``labels`` for a clip solved in windows (which run no
+    stages): the tracks relabelled where the detector kept left and right the other way round,
+    the problem made again on them."""
+    if "labels" in skip:
+        return problem, {}
+    tracks, frames, lifted = relabel_spans(inputs["tracks"])
+    if not any(len(f) for f in frames + lifted):
+        return problem, {}
+    inputs["tracks"] = tracks
+    return make_problem(**inputs, calibrate=mode), relabelled_extras(frames, lifted, problem.camera_names)
 
 
 def _feet_settings(floor, contact):

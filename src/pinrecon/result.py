@@ -187,7 +187,7 @@ class Result:
         total = sum(s.seconds for s in self.stages)
         lines = [f"stages ({total:.2f} s in all): time, cost before -> after, what changed"]
         for s in self.stages:
-            cost = f"{s.cost_before:.6g} -> {s.cost_after:.6g}" if s.ran else "-"
+            cost = f"{s.cost_before:.6g} -> {s.cost_after:.6g}" if s.ran and np.isfinite(s.cost_after) else "-"
             lines.append(f"  {s.name:<8} {s.seconds:7.2f} s  {cost:<24} {s.changed}")
         return lines
 

@@ -77,7 +77,7 @@ FOCAL_ITERATIONS_LIFTED = 10
 #: calibration's 1682) and 92.9 mm, 86.6 with the solve's own 2789 px kept
 FOCAL_PLAUSIBLE = (0.3, 1.5)
 
-__all__ = ["STAGES", "Run", "StageReport", "check_skip", "relabel_spans", "run_stages"]
+__all__ = ["STAGES", "Run", "StageReport", "check_skip", "relabel_spans", "relabelled_extras", "run_stages"]
 
 
 @dataclass
@@ -130,21 +130,28 @@ def relabel_spans(tracks):
     return (out if several else out[0]), frames, lifted
 
 
+def relabelled_extras(frames, lifted, names) -> dict:
+    """The result's extras of :func:`relabel_spans`' frames (``relabelled_frames``,
+    ``relabelled_lifted_frames``; ``<camera>_`` before them for every camera but the first)."""
+    out = {}
+    for v, (f, g) in enumerate(zip(frames, lifted)):
+        prefix = "" if v == 0 else f"{names[v]}_"
+        out[prefix + "relabelled_frames"] = np.asarray(f, int)
+        out[prefix + "relabelled_lifted_frames"] = np.asarray(g, int)
+    return out
+
+
 def _labels(run: Run) -> str | None:
     tracks, frames, lifted = relabel_spans(run.inputs["tracks"])
     if not any(len(f) for f in frames + lifted):
         return None
     run.inputs["tracks"] = tracks
     run.problem = make_problem(**run.inputs, calibrate=run.mode)
-    names = run.problem.camera_names if len(frames) > 1 else [""]
-    said = []
-    for v, (f, g) in enumerate(zip(frames, lifted)):
-        prefix = "" if v == 0 else f"{names[v]}_"
-        run.relabelled[prefix + "relabelled_frames"] = np.asarray(f, int)
-        run.relabelled[prefix + "relabelled_lifted_frames"] = np.asarray(g, int)
-        if len(f) or len(g):
-            said.append((f"{names[v]}: " if v else "") + (spans_text(f) or "none")
-                        + ("" if np.array_equal(f, g) else f" (its 3D: {spans_text(g) or 'none'})"))
+    names = run.problem.camera_names
+    run.relabelled = relabelled_extras(frames, lifted, names)
+    said = [(f"{names[v]}: " if v else "") + (spans_text(f) or "none")
+            + ("" if np.array_equal(f, g) else f" (its 3D: {spans_text(g) or 'none'})")
+            for v, (f, g) in enumerate(zip(frames, lifted)) if len(f) or len(g)]
     return f"left and right exchanged back on frames {'; '.join(said)}"
 
 
