@@ -185,3 +185,15 @@ def test_a_focal_length_resting_on_an_unfamiliar_prior_is_doubted():
     with pytest.warns(FocalLengthWarning, match="default pose prior did not know 84 %"):
         out = doubt_focal(auto, 0.84, broader="human_pose_mixture")
     assert out["focal"]["determined"] is False and "broader human_pose_mixture" in out["focal"]["message"]
+
+
+def test_a_focal_length_no_lens_has_is_said():
+    """239 px for a 1920 x 1080 image: 0.11 of its 2203 px diagonal, 2 atan(1101 / 239) = 156
+    degrees across it (the bench's fast spin ended there, a degenerate solve)."""
+    from pinrecon.starts.camera_auto import implausible_focal
+
+    assert implausible_focal(1200.0, (1920, 1080)) is None
+    assert implausible_focal(1681.0, (1088, 1920)) is None  # Pose2Sim's phones
+    msg = implausible_focal(239.0, (1920, 1080))
+    assert "239 px, 0.11 image diagonals" in msg and "156 degrees" in msg and "--fov" in msg
+    assert "longer than a telephoto" in implausible_focal(20000.0, (1920, 1080))

@@ -25,6 +25,7 @@ from .io.motion import check_motion
 from .io.results import check_calibration, load_result_npz, save_result_npz, text_json
 from .rows.posture import unused_priors
 from .solver import SolveResult
+from .starts.camera_auto import implausible_focal
 
 __all__ = ["Result", "StageReport", "check_motion", "hypothesis_spans", "load_result"]
 
@@ -319,6 +320,10 @@ class Result:
             if isinstance(focal, dict) and focal.get("message"):
                 flag = "" if focal.get("determined") else "WARNING: "
                 lines.append(f"  {flag}{focal['message']}")
+            size = auto.get("image_size")
+            odd = implausible_focal(float(cam.K[0, 0]), size) if size and hasattr(cam, "K") else None
+            if odd:
+                lines.append(f"  WARNING: {odd}")
         return lines
 
     def foot_metrics(self) -> dict | None:

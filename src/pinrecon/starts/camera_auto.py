@@ -79,6 +79,7 @@ __all__ = [
     "doubt_focal",
     "focal_profile",
     "image_size_of",
+    "implausible_focal",
     "keyframe_correspondences",
     "keyframe_focal_interval",
     "orthographic_from_keyframes",
@@ -236,7 +237,30 @@ def auto_camera(tracks, figure=None, image_size=None, projection: str = "perspec
 
 # ----------------------------------------------------------------------------- how well the data fix f
 class FocalLengthWarning(UserWarning):
-    """The tracks do not determine the auto camera's focal length (see :func:`focal_profile`)."""
+    """The tracks do not determine the auto camera's focal length (see :func:`focal_profile`),
+    or it ended where no camera without a fisheye lens is (:func:`implausible_focal`)."""
+
+
+#: focal lengths, in image diagonals, of the widest and the longest lens an auto camera's fit is
+#: taken from without a warning: fields of view of about 127 and 8 degrees across the diagonal
+FOCAL_DIAGONALS = (0.25, 6.0)
+
+
+def implausible_focal(f_px: float, image_size) -> str | None:
+    """What is wrong with a fitted focal length ``f_px`` for an image of ``image_size`` (W, H)
+    pixels when it lies outside :data:`FOCAL_DIAGONALS`, else None. A fit that wide means
+    the solve bent the figure's depths and lengths to a camera no phone or camcorder has (on
+    the bench's fast spin, 239 px for 1920 x 1080 with a forearm measured at half the
+    figure's)."""
+    diag = float(np.hypot(*image_size))
+    lo, hi = FOCAL_DIAGONALS
+    if lo * diag <= f_px <= hi * diag:
+        return None
+    fov = float(np.degrees(2.0 * np.arctan(diag / 2.0 / f_px)))
+    return (f"the auto camera's focal length ended at {f_px:.0f} px, {f_px / diag:.2f} image diagonals (a field of "
+            f"view of {fov:.0f} degrees across the image): {'wider than any lens but a fisheye' if f_px < lo * diag else 'longer than a telephoto'}; "
+            "the solution is likely degenerate (depths and limb lengths bent to fit). Give the field of view "
+            "(--fov), a calibrated camera (--camera FILE) or 3D keyframes")
 
 
 @dataclass
@@ -546,8 +570,11 @@ def settle_focal(problem, res, auto: dict | None, *, options=None, rounds: int =
         # tracks' (the prior's) focal length, not theirs
         rep = dataclasses.replace(rep, interval_px=tuple(kf["interval_px"]), bounded=(True, True), determined=False,
                                   keyframes={**kf, "excludes_fit": True})
-    if not rep.determined:
-        import warnings
+    import warnings
 
+    if not rep.determined:
         warnings.warn(rep.message(), FocalLengthWarning, stacklevel=3)
+    odd = implausible_focal(rep.focal_px, auto["image_size"]) if auto.get("image_size") else None
+    if odd:
+        warnings.warn(odd, FocalLengthWarning, stacklevel=3)
     return res, {**auto, "focal": rep.to_dict()}
