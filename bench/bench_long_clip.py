@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import quick
 
-QUICK = quick.take(["--frames", "300"], cut=False)
+QUICK = quick.take(["--frames", "120"], cut=False)
 
 import argparse
 import resource
