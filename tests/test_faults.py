@@ -102,7 +102,7 @@ def test_a_clip_solved_in_windows_is_relabelled_too(scene):
     res = _reconstruct(fig, tracks, cam, keys, window=30, floor="none")
     assert [s.name for s in res.stages] == ["windowed"]
     assert np.asarray(res.extras["relabelled_frames"]).tolist() == swapped
-    assert np.asarray(res.extras["relabelled_lifted_frames"]).tolist() == []
+    assert "relabelled_lifted_frames" not in res.extras  # the tracks carry no lifter's 3D
     off = _reconstruct(fig, tracks, cam, keys, window=30, floor="none", skip=("labels",))
     assert "relabelled_frames" not in off.extras
 

@@ -326,7 +326,7 @@ def _labels_up_front(problem, inputs, mode, skip):
     if "labels" in skip:
         return problem, {}
     tracks, frames, lifted = relabel_spans(inputs["tracks"])
-    if not any(len(f) for f in frames + lifted):
+    if not any(len(f) for f in frames + lifted if f is not None):
         return problem, {}
     inputs["tracks"] = tracks
     return make_problem(**inputs, calibrate=mode), relabelled_extras(frames, lifted, problem.camera_names)

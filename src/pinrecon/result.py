@@ -266,7 +266,8 @@ class Result:
                 lines.append(f"no learned pose prior in this solve, but {name!r} fits this figure: with detector "
                              f"tracks and few keyframes it decides most limb depths (--pose-prior-model {name}; "
                              "models/priors/README.md)")
-        f, g = (np.asarray(x.get(k, ()), int) for k in ("relabelled_frames", "relabelled_lifted_frames"))
+        f = np.asarray(x.get("relabelled_frames", ()), int)
+        g = np.asarray(x["relabelled_lifted_frames"], int) if "relabelled_lifted_frames" in x else f
         if len(f) or len(g):
             lines.append("the detector kept left and right the other way round on frames "
                          f"{spans_text(f) or 'none'}" + ("" if np.array_equal(f, g) else

@@ -118,13 +118,14 @@ def relabel_spans(tracks):
     """``(tracks, frames, lifted)``: the tracks (or list of them, one per camera) with the
     frames whose left and right labels are the other way round relabelled
     (:func:`pinrecon.faults.side_swap_frames`; a lifter's 3D on the tracks by its own
-    continuity), and those frames per camera (lists: the 2D's, the 3D's)."""
+    continuity), and those frames per camera (lists: the 2D's, the 3D's, None for tracks without
+    a lifter's 3D)."""
     several = isinstance(tracks, (list, tuple))
     out, frames, lifted = [], [], []
     for t in tracks if several else [tracks]:
         f = side_swap_frames(t)
-        g = side_swap_frames(t.lifted) if t.lifted is not None else np.zeros(0, int)
-        out.append(relabel_sides(t, f, g) if len(f) or len(g) else t)
+        g = side_swap_frames(t.lifted) if t.lifted is not None else None
+        out.append(relabel_sides(t, f, g) if len(f) or g is not None and len(g) else t)
         frames.append(f)
         lifted.append(g)
     return (out if several else out[0]), frames, lifted
@@ -137,21 +138,22 @@ def relabelled_extras(frames, lifted, names) -> dict:
     for v, (f, g) in enumerate(zip(frames, lifted)):
         prefix = "" if v == 0 else f"{names[v]}_"
         out[prefix + "relabelled_frames"] = np.asarray(f, int)
-        out[prefix + "relabelled_lifted_frames"] = np.asarray(g, int)
+        if g is not None:
+            out[prefix + "relabelled_lifted_frames"] = np.asarray(g, int)
     return out
 
 
 def _labels(run: Run) -> str | None:
     tracks, frames, lifted = relabel_spans(run.inputs["tracks"])
-    if not any(len(f) for f in frames + lifted):
+    if not any(len(f) for f in frames + lifted if f is not None):
         return None
     run.inputs["tracks"] = tracks
     run.problem = make_problem(**run.inputs, calibrate=run.mode)
     names = run.problem.camera_names
     run.relabelled = relabelled_extras(frames, lifted, names)
     said = [(f"{names[v]}: " if v else "") + (spans_text(f) or "none")
-            + ("" if np.array_equal(f, g) else f" (its 3D: {spans_text(g) or 'none'})")
-            for v, (f, g) in enumerate(zip(frames, lifted)) if len(f) or len(g)]
+            + ("" if g is None or np.array_equal(f, g) else f" (its 3D: {spans_text(g) or 'none'})")
+            for v, (f, g) in enumerate(zip(frames, lifted)) if len(f) or g is not None and len(g)]
     return f"left and right exchanged back on frames {'; '.join(said)}"
 
 
