@@ -143,7 +143,7 @@ def side_swap_frames(tracks) -> np.ndarray:
         for offs, cost in terms:
             span = offs[-1]
             for t in range(span, 3):
-                if t - span >= 0 and t - span < len(cost):
+                if t - span < len(cost):
                     if len(offs) == 2:
                         start[w] += cost[t - span, int(lab[t] != lab[t - span])]
                     else:

@@ -42,7 +42,7 @@ from .rows import Measurement2D
 from .rows.lifted import LiftedPose, disagreement_extras
 from .rows.posture import prior_for
 from .solver import SolveResult, SolverOptions, globals_of, solve
-from .stages import Run, StageReport, check_skip, relabel_spans, relabelled_extras, run_stages
+from .stages import Run, StageReport, check_skip, relabel_inputs, run_stages
 from .starts import available_starts, get_start, initial_trajectory, sparse_keyframes
 from .starts.camera_auto import (
     AutoCamera,
@@ -321,15 +321,11 @@ def reconstruct(
 
 def _labels_up_front(problem, inputs, mode, skip):
     """``(problem, extras)``: the stage ``labels`` for a clip solved in windows (which run no
-    stages): the tracks relabelled where the detector kept left and right the other way round,
-    the problem made again on them."""
+    stages), :func:`pinrecon.stages.relabel_inputs`."""
     if "labels" in skip:
         return problem, {}
-    tracks, frames, lifted = relabel_spans(inputs["tracks"])
-    if not any(len(f) for f in frames + lifted if f is not None):
-        return problem, {}
-    inputs["tracks"] = tracks
-    return make_problem(**inputs, calibrate=mode), relabelled_extras(frames, lifted, problem.camera_names)
+    relabelled, extras, _, _ = relabel_inputs(inputs, mode)
+    return relabelled or problem, extras
 
 
 def _feet_settings(floor, contact):

@@ -77,7 +77,7 @@ FOCAL_ITERATIONS_LIFTED = 10
 #: calibration's 1682) and 92.9 mm, 86.6 with the solve's own 2789 px kept
 FOCAL_PLAUSIBLE = (0.3, 1.5)
 
-__all__ = ["STAGES", "Run", "StageReport", "check_skip", "relabel_spans", "relabelled_extras", "run_stages"]
+__all__ = ["STAGES", "Run", "StageReport", "check_skip", "relabel_inputs", "relabel_spans", "run_stages"]
 
 
 @dataclass
@@ -131,7 +131,7 @@ def relabel_spans(tracks):
     return (out if several else out[0]), frames, lifted
 
 
-def relabelled_extras(frames, lifted, names) -> dict:
+def _relabelled_extras(frames, lifted, names) -> dict:
     """The result's extras of :func:`relabel_spans`' frames (``relabelled_frames``,
     ``relabelled_lifted_frames``; ``<camera>_`` before them for every camera but the first)."""
     out = {}
@@ -143,14 +143,25 @@ def relabelled_extras(frames, lifted, names) -> dict:
     return out
 
 
-def _labels(run: Run) -> str | None:
-    tracks, frames, lifted = relabel_spans(run.inputs["tracks"])
+def relabel_inputs(inputs: dict, mode: str):
+    """The stage ``labels`` on :func:`~pinrecon.problem.make_problem`'s ``inputs`` (whose
+    tracks it replaces): ``(problem, extras, frames, lifted)``, the problem made again on the
+    relabelled tracks and the result's extras, or ``(None, {}, frames, lifted)`` when nothing
+    was relabelled (frames as :func:`relabel_spans`)."""
+    tracks, frames, lifted = relabel_spans(inputs["tracks"])
     if not any(len(f) for f in frames + lifted if f is not None):
+        return None, {}, frames, lifted
+    inputs["tracks"] = tracks
+    problem = make_problem(**inputs, calibrate=mode)
+    return problem, _relabelled_extras(frames, lifted, problem.camera_names), frames, lifted
+
+
+def _labels(run: Run) -> str | None:
+    problem, extras, frames, lifted = relabel_inputs(run.inputs, run.mode)
+    if problem is None:
         return None
-    run.inputs["tracks"] = tracks
-    run.problem = make_problem(**run.inputs, calibrate=run.mode)
-    names = run.problem.camera_names
-    run.relabelled = relabelled_extras(frames, lifted, names)
+    run.problem, run.relabelled = problem, extras
+    names = problem.camera_names
     said = [(f"{names[v]}: " if v else "") + (spans_text(f) or "none")
             + ("" if g is None or np.array_equal(f, g) else f" (its 3D: {spans_text(g) or 'none'})")
             for v, (f, g) in enumerate(zip(frames, lifted)) if len(f) or g is not None and len(g)]
