@@ -365,6 +365,8 @@ def _result(run: Run, reports) -> Result:
         result.extras.update(run.feet.to_extras())
     if run.switch is not None:
         result.extras.update(switch_extras(*run.switch))
+        if run.switch_focal is not None:
+            result.extras["prior_switch_focal_px"] = np.float64(run.switch_focal)
     if run.conflict is not None:
         result.extras.update(run.conflict.to_extras())
     result.extras.update(run.relabelled)

@@ -237,7 +237,11 @@ class Result:
                              f"the mirror costs {abs(gain):.1f} {'less' if gain > 0 else 'more'}")
             if len(ties) > limit:
                 lines.append(f"  ... and {len(ties) - limit} more")
-        if "prior_default_unfamiliar" in x:
+        if "prior_switch_focal_px" in x:
+            lines.append(f"pose prior: {x['prior_model']!s} (the first solve put the auto camera's focal length at "
+                         f"{float(x['prior_switch_focal_px']):.0f} px, where no ordinary lens is: a degenerate solution, "
+                         "solved again with this broader prior and the lifter's cues, as for unfamiliar poses)")
+        elif "prior_default_unfamiliar" in x:
             lines.append(f"pose prior: {x['prior_model']!s} (the default did not know "
                          f"{100 * float(x['prior_default_unfamiliar']):.0f} % of the frames' poses as first solved: solved again "
                          "with this broader one; pinrecon.unfamiliar.broader_prior)")

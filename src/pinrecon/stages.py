@@ -62,7 +62,7 @@ from .problem import ReconstructionProblem, make_problem
 from .result import StageReport, spans_text
 from .solver import SolveResult, SolverOptions, solve
 from .starts import auto_start, initial_trajectory
-from .starts.camera_auto import settle_focal
+from .starts.camera_auto import fitted_focal, implausible_focal, settle_focal
 from .starts.lifted import has_lifted
 from .starts.mirrors import mirror_stage
 from .starts.turns import turn_stage
@@ -107,6 +107,7 @@ class Run:
     joined: bool = False  # the lifter joined at the prior's switch (the cue rules below are for given cues)
     # what the stages leave for the result
     switch: tuple | None = None
+    switch_focal: float | None = None  # the first solve's implausible focal length (px) that switched the prior
     judge: str | None = None
     feet: object = None
     conflict: object = None  # the pose prior's variance factors (pinrecon.prior_yield.PriorConflict)
@@ -208,8 +209,13 @@ def _prior(run: Run) -> str | None:
         _reissue(run)
         return None
     unfamiliar = unfamiliar_poses(run.problem, run.problem.figure.normalize(run.res.x))
-    switch = None if unfamiliar is None else broader_prior(run.default_prior, "auto", unfamiliar.to_extras(),
-                                                           share=run.switch_limit)
+    extras = {} if unfamiliar is None else unfamiliar.to_extras()
+    switch = broader_prior(run.default_prior, "auto", extras, share=run.switch_limit) if extras else None
+    focal = _degenerate_focal(run) if switch is None and run.default_prior in BROADER_PRIOR else None
+    if focal is not None:  # a degenerate first solve: the broader route (and the lifter's cues) from the start
+        d = np.asarray(extras.get("prior_distance", []), float)
+        share = float(np.mean(d > float(extras["prior_distance_limit"]))) if len(d) else 0.0
+        switch, run.switch_focal = (BROADER_PRIOR[run.default_prior], share), focal
     if switch is None:
         _reissue(run)
         return None
@@ -224,7 +230,21 @@ def _prior(run: Run) -> str | None:
     _solve(run)
     run.default_prior, run.switch, run.judge = default, switch, default
     run.mirrors = run.mirrors or run.problem.weights.pose_prior_model in BROADER_PRIOR.values()
-    return f"pose prior {default} -> {switch[0]} ({100 * switch[1]:.0f} % of the poses unfamiliar), solved again"
+    why = f"the auto camera's focal length at {focal:.0f} px, implausible" if focal is not None else \
+        f"{100 * switch[1]:.0f} % of the poses unfamiliar"
+    return f"pose prior {default} -> {switch[0]} ({why}), solved again"
+
+
+def _degenerate_focal(run: Run) -> float | None:
+    """The auto camera's focal length (px) after the first solve when no lens but a fisheye or
+    beyond a telephoto has it (:func:`~pinrecon.starts.camera_auto.implausible_focal`): the
+    solve bent the depths and lengths to fit (the bench's fast spin 05_11 without cues: 239 px for
+    1920 x 1080, 265 mm PA-MPJPE; solved again as for unfamiliar poses, 798 px and 54 mm); else None."""
+    size = (run.auto or {}).get("image_size")
+    if not size or run.auto.get("projection") != "perspective":
+        return None
+    f = fitted_focal(run.problem, run.res)
+    return f if f is not None and implausible_focal(f, size) else None
 
 
 def _yield(run: Run) -> str | None:

@@ -77,6 +77,7 @@ __all__ = [
     "camera_scale_from_keyframes",
     "check_focal",
     "doubt_focal",
+    "fitted_focal",
     "focal_profile",
     "image_size_of",
     "implausible_focal",
@@ -394,6 +395,13 @@ def _focal_of(problem, res):
     if intr is None or intr.name != "log_focal":
         return None
     return intr, np.array(g, float)
+
+
+def fitted_focal(problem, res) -> float | None:
+    """The auto camera's focal length (px) in the solve ``res`` of ``problem``, or None when the
+    focal length is not one of its unknowns."""
+    of = _focal_of(problem, res)
+    return None if of is None else float(of[0].value(of[1]))
 
 
 def _profile_solves(problem, res, steps, options):
