@@ -200,6 +200,8 @@ def main(argv=None):
                     help="the MAP + lifter column with the lifter's rows in every solve (default: as reconstruct's "
                     "default, joining with the broader prior where the default prior does not know the clip)")
     ap.add_argument("--weight", type=float, help="Weights.lifted of the MAP with the lifter (default: Weights' own)")
+    ap.add_argument("--seed", help="the start of the MAP with the lifter (reconstruct's seed=; default its own: with "
+                    "--from-start the lifted start)")
     a = ap.parse_args(argv)
     from provenance import provenance
 
@@ -251,6 +253,7 @@ def main(argv=None):
               "(lifter='none') and with the fold's lifter (lifter=FILE: its lifted-pose rows"
               + (f", Weights.lifted {a.weight:g}" if a.weight is not None else "")
               + (", in every solve" if a.from_start else ", joining with the broader prior as by default")
+              + (f", start {a.seed!r}" if a.seed else "")
               + "); the lifter alone beside them\n")
         print("| clip | angle | fold | lifter alone PA-MPJPE (mm) / flips (%) | MAP today PA-MPJPE (mm) / flips (%) "
               "| MAP + lifter PA-MPJPE (mm) / flips (%) | time today / with lifter (s) |")
@@ -263,7 +266,8 @@ def main(argv=None):
                     tracks, cam, P = cases.get((clip, az)) or cmu_case(clip, az)
                     alone = score_lifted(lift(tracks, cam, model=models[fold]), P, cam)
                     d = run_map(tracks, cam, P)  # lifter="none"
-                    w = run_map(tracks, cam, P, str(fold_path(a.folds, fold)), a.weight, a.from_start)
+                    w = run_map(tracks, cam, P, str(fold_path(a.folds, fold)), a.weight, a.from_start,
+                                **({'seed': a.seed} if a.seed else {}))
                     assert not d["lifted"]
                     print(f"| {CLIP_NAME[clip]} | {az:.0f} | {fold} | {alone['pa']:.1f} / {alone['flips']:.1f} "
                           f"| {d['pa']:.1f} / {d['flips']:.1f} | {w['pa']:.1f} / {w['flips']:.1f} "
