@@ -66,7 +66,7 @@ from .starts.camera_auto import fitted_focal, implausible_focal, settle_focal
 from .starts.lifted import has_lifted
 from .starts.mirrors import mirror_stage
 from .starts.turns import turn_stage
-from .unfamiliar import BROADER_PRIOR, broader_prior, unfamiliar_poses
+from .unfamiliar import BROADER_PRIOR, broader_prior, unfamiliar_poses, unfamiliar_share
 
 #: the focal stage's solves with lifted cues: at most this many iterations each (bench_stages:
 #: the same PA-MPJPE and flips on the five clips, the stage 30 % shorter on Pose2Sim's trial)
@@ -210,12 +210,10 @@ def _prior(run: Run) -> str | None:
         return None
     unfamiliar = unfamiliar_poses(run.problem, run.problem.figure.normalize(run.res.x))
     extras = {} if unfamiliar is None else unfamiliar.to_extras()
-    switch = broader_prior(run.default_prior, "auto", extras, share=run.switch_limit) if extras else None
+    switch = broader_prior(run.default_prior, "auto", extras, share=run.switch_limit)
     focal = _degenerate_focal(run) if switch is None and run.default_prior in BROADER_PRIOR else None
     if focal is not None:  # a degenerate first solve: the broader route (and the lifter's cues) from the start
-        d = np.asarray(extras.get("prior_distance", []), float)
-        share = float(np.mean(d > float(extras["prior_distance_limit"]))) if len(d) else 0.0
-        switch, run.switch_focal = (BROADER_PRIOR[run.default_prior], share), focal
+        switch, run.switch_focal = (BROADER_PRIOR[run.default_prior], unfamiliar_share(extras)), focal
     if switch is None:
         _reissue(run)
         return None

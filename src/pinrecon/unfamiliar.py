@@ -43,7 +43,7 @@ import numpy as np
 from .rows.posture import PosePrior, posture_row
 
 __all__ = ["BROADER_PRIOR", "SWITCH_SHARE", "SWITCH_SHARE_MONOCULAR", "UnfamiliarPoses", "broader_prior",
-           "switch_extras", "switch_share", "unfamiliar_poses"]
+           "switch_extras", "switch_share", "unfamiliar_poses", "unfamiliar_share"]
 
 #: the broader prior a clip is solved again with when its default prior does not know most of
 #: its poses: the generic human's single Gaussian (walking, running, jumping, basketball; sharp
@@ -134,9 +134,15 @@ def broader_prior(used: str | None, model: str, extras: dict, *, share: float = 
     the run 0 %."""
     if model != "auto" or used not in BROADER_PRIOR or "prior_distance" not in extras:
         return None
-    d = np.asarray(extras["prior_distance"], float)
-    found = float(np.mean(d > float(extras["prior_distance_limit"]))) if len(d) else 0.0
+    found = unfamiliar_share(extras)
     return (BROADER_PRIOR[used], found) if found > share else None
+
+
+def unfamiliar_share(extras: dict) -> float:
+    """The share of a result's frames beyond its pose prior's limit (``extras`` with
+    :meth:`UnfamiliarPoses.to_extras`; 0 without the check)."""
+    d = np.asarray(extras.get("prior_distance", ()), float)
+    return float(np.mean(d > float(extras["prior_distance_limit"]))) if len(d) else 0.0
 
 
 def switch_extras(name: str, share: float) -> dict:
