@@ -84,6 +84,7 @@ def main(argv=None) -> None:
     print("|---:|---:|---:|---:|---:|---|")
     print(f"| {a.frames} | {a.frames / wall:.1f} / {a.frames / cpu:.1f} | {peak:.0f} | {rss0:.0f} | {pa_mpjpe(X, P):.1f} "
           f"| {', '.join(s.name for s in res.stages)} |")
+    print("\nstages: " + "; ".join(f"{s.name} {s.seconds:.0f} s" for s in res.stages))
     print(f"\ntargets (issue 43): peak RSS under 2 GB: {'met' if peak < 2048 else 'NOT met'}; "
           f"300 frames/s: {'met' if a.frames / wall >= 300 else 'NOT met'}")
 

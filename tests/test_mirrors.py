@@ -15,7 +15,7 @@ from pinrecon import metrics
 from pinrecon.problem import Weights, make_problem
 from pinrecon.rows import Points3D
 from pinrecon.solver import SolverOptions, solve
-from pinrecon.starts.mirrors import MODES, crossing_spans, mirror_stage, mirrored_points
+from pinrecon.starts.mirrors import MARGIN_S, MODES, crossing_spans, mirror_stage, mirrored_points
 from pinrecon.synthetic import (
     COCO_BODY_FROM_CMU,
     human_walk,
@@ -121,14 +121,17 @@ def _arm_flips(fig, Q_est, Q_true, cam, span):
     return flip[a:b].sum(0), count[a:b].sum(0)
 
 
-def test_a_mirrored_arm_span_is_turned_back(arm_case):
+@pytest.mark.parametrize("margin_s", [MARGIN_S, 0.3])
+def test_a_mirrored_arm_span_is_turned_back(arm_case, margin_s):
     """The stage finds the truth's basin for the upper arm, and ends at a cost at or below
     the solve started from the truth (the forearm's reflection is the prior's to decide:
-    here its mirror is the cheaper, 1060 against 1080 nats)."""
+    here its mirror is the cheaper, 1060 against 1080 nats). With margins of 0.3 s (9
+    frames) each candidate is solved on its span and margins alone (the clip cropped), and
+    judged on the whole clip."""
     fig, Q, cam, problem, options, wrong, truth, span = arm_case
     flips, counted = _arm_flips(fig, fig.normalize(wrong.x), Q, cam, span)
     assert counted.min() >= 20 and flips[0] >= 0.8 * counted[0]  # the solve alone keeps the upper arm mirrored
-    out = mirror_stage(problem, wrong, options)
+    out = mirror_stage(problem, wrong, options, margin_s=margin_s)
     flips, counted = _arm_flips(fig, fig.normalize(out.x), Q, cam, span)
     assert flips[0] == 0
     assert out.cost < wrong.cost - 200.0 and out.cost <= truth.cost + 1.0

@@ -17,7 +17,7 @@ from __future__ import annotations
 import math
 import warnings
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -304,6 +304,40 @@ class ReconstructionProblem:
             global_names=self.global_names, calibrate=self.calibrate,
         )
         new.reports = self.reports
+        return new
+
+    def cropped(self, lo: int, hi: int) -> ReconstructionProblem | None:
+        """The problem of frames ``lo .. hi - 1`` alone, a problem of ``hi - lo`` frames:
+        every row kind's :meth:`~pinrecon.rows.base.RowKind.crop` (frames shifted to start at
+        0; row groups reaching outside the range, e.g. the smoothing rows across its ends,
+        dropped), the same globals. Solving it moves those frames with the rest of the clip
+        held, at a cost in proportion to its length, not the clip's. A view's tracks are cut to
+        the range when its frame step is 1 (else ``None``); keyframes are not carried (a start
+        of the cropped problem reads neither). ``None`` when a row kind cannot be cropped
+        (e.g. the lifted rows with an estimated rotation, the whole clip's)."""
+        lo, hi = int(lo), int(hi)
+        if not 0 <= lo < hi <= self.n_frames:
+            raise InputError(f"frames {lo}..{hi - 1} are not within the problem's {self.n_frames}", field="frames")
+        rows, new_of = [], {}
+        for r in self.rows:
+            c = r.crop(lo, hi)
+            if c is None:
+                return None
+            rows.append(c)
+            new_of[id(r)] = c
+        views = [replace(v, measurement=new_of.get(id(v.measurement), v.measurement),
+                         tracks=v.tracks.frames(lo, hi) if v.factor == 1 and v.tracks is not None else None)
+                 for v in self.views]
+        measurement = new_of.get(id(self.measurement)) if self.measurement is not None else None
+        smoothing = new_of.get(id(self.smoothing)) if self.smoothing is not None else None
+        new = ReconstructionProblem.__new__(ReconstructionProblem)
+        new.__dict__.update(self.__dict__)
+        ReconstructionProblem.__init__(
+            new, self.figure, hi - lo, rows, fps=self.fps, factor=self.factor,
+            tracks=views[0].tracks if views else None, camera=self.camera, keyframes=None, weights=self.weights,
+            measurement=measurement, smoothing=smoothing, active=self.active, markers=None, views=views,
+            proportions=self.proportions, g0=self.g0, global_names=self.global_names, calibrate=self.calibrate,
+        )
         return new
 
     def with_globals(self, g) -> ReconstructionProblem:

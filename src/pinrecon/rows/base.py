@@ -19,6 +19,7 @@ unknowns, the keypoints of the figure scaled by them with their derivatives
 
 from __future__ import annotations
 
+import copy
 import weakref
 from dataclasses import dataclass
 
@@ -26,7 +27,7 @@ import numpy as np
 
 from ..kinematics import keypoint_jacobians_from_world, point_jacobian_factors, rows_of
 
-__all__ = ["RowBlock", "RowKind", "State", "supported_columns"]
+__all__ = ["RowBlock", "RowKind", "State", "crop_aligned", "crop_every_frame", "supported_columns"]
 
 
 @dataclass
@@ -82,6 +83,34 @@ class RowKind:
 
     def evaluate(self, state: State, jacobian: bool = True) -> RowBlock:  # pragma: no cover
         raise NotImplementedError
+
+    def crop(self, lo: int, hi: int) -> RowKind | None:
+        """These rows on frames ``lo .. hi - 1`` alone, as a problem of ``hi - lo`` frames
+        (frames shifted to start at 0; a row group touching a frame outside is dropped), or
+        ``None`` when the kind cannot be cropped
+        (:meth:`pinrecon.problem.ReconstructionProblem.cropped`)."""
+        return None
+
+
+def crop_aligned(row, lo: int, hi: int, aligned=()):
+    """A copy of ``row`` (one row group per entry of its (N,) ``frames``) with the groups
+    whose frame lies in ``lo .. hi - 1``: ``frames`` shifted by ``-lo`` and the attributes
+    named in ``aligned`` (arrays whose first axis follows ``frames``) selected alike."""
+    keep = (row.frames >= lo) & (row.frames < hi)
+    new = copy.copy(row)
+    for name in aligned:
+        setattr(new, name, getattr(row, name)[keep])
+    new.frames = row.frames[keep] - lo
+    new.kinematic_frames = new.frames
+    return new
+
+
+def crop_every_frame(row, lo: int, hi: int):
+    """A copy of ``row`` (one row group per frame, ``frames = arange(T)``, evaluated on the
+    whole trajectory) over ``hi - lo`` frames."""
+    new = copy.copy(row)
+    new.frames = np.arange(int(hi) - int(lo))
+    return new
 
 
 class State:

@@ -31,7 +31,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..rotations import euler_to_matrix
-from .base import RowBlock, RowKind, State
+from .base import RowBlock, RowKind, State, crop_every_frame
 from .hinges import channel_joints, hinge_row
 
 __all__ = ["Bones", "bone_angles", "bone_row", "skeleton_rows"]
@@ -114,6 +114,9 @@ class Bones(RowKind):
             return bone_angles(M), None
         dR = np.stack([_K[seq[0]] @ R, R0 @ R1 @ _K[seq[1]] @ R2, R @ _K[seq[2]]], axis=1)  # (N, 3, 3, 3)
         return bone_angles(M, C.T @ dR @ C)
+
+    def crop(self, lo: int, hi: int) -> Bones:
+        return crop_every_frame(self, lo, hi)
 
     def evaluate(self, state: State, jacobian: bool = True) -> RowBlock:
         Q = state.Q

@@ -37,6 +37,9 @@ class GlobalPrior(RowKind):
         self.inv_sigma = 1.0 / sigma
         self.kinematic_frames = np.zeros(0, dtype=int)
 
+    def crop(self, lo: int, hi: int) -> GlobalPrior:
+        return self  # on the globals alone, no frame
+
     def evaluate(self, state: State, jacobian: bool = True) -> RowBlock:
         if state.g is None:
             raise ValueError("GlobalPrior needs the global vector g in the state")

@@ -29,7 +29,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ..rotations import euler_to_matrix
-from .base import RowBlock, RowKind, State
+from .base import RowBlock, RowKind, State, crop_every_frame
 
 __all__ = ["Hinges", "channel_joints", "hinge_row"]
 
@@ -91,6 +91,9 @@ class Hinges(RowKind):
         self.joints = labels
         self.sigma = float(sigma)
         self.frames = np.arange(n_frames)
+
+    def crop(self, lo: int, hi: int) -> Hinges:
+        return crop_every_frame(self, lo, hi)
 
     def evaluate(self, state: State, jacobian: bool = True) -> RowBlock:
         Q = state.Q

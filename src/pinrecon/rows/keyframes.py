@@ -15,6 +15,8 @@ root by ``R v``).
 
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 import pinocchio as pin
 
@@ -67,6 +69,14 @@ class JointKeyframes(RowKind):
             if trans is None and all(c in q_of_v for c in sc) else None
             for (_, _, _, sc, trans) in self.items
         ]
+
+    def crop(self, lo: int, hi: int) -> JointKeyframes:
+        new = copy.copy(self)
+        keep = [i for i, it in enumerate(self.items) if lo <= it[0] < hi]
+        new.items = [(self.items[i][0] - lo,) + tuple(self.items[i][1:]) for i in keep]
+        new._euclid = [self._euclid[i] for i in keep]
+        new.frames = np.array([it[0] for it in new.items], dtype=int)
+        return new
 
     def evaluate(self, state: State, jacobian: bool = True) -> RowBlock:
         m = self.figure.model

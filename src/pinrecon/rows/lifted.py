@@ -46,11 +46,21 @@ from __future__ import annotations
 
 import numpy as np
 
-from .base import RowBlock, RowKind, State, supported_columns
+from .base import RowBlock, RowKind, State, crop_aligned, supported_columns
 
-__all__ = ["LiftedPose", "EXTRA_BONES", "lifted_bones", "lifted_rows", "procrustes_rotation",
-           "disagreement_extras", "disagreement_spans", "DISAGREEMENT_DEG",
-           "LiftedLengths", "lifted_lengths_row", "LENGTH_BONES"]
+__all__ = [
+    "DISAGREEMENT_DEG",
+    "EXTRA_BONES",
+    "LENGTH_BONES",
+    "LiftedLengths",
+    "LiftedPose",
+    "disagreement_extras",
+    "disagreement_spans",
+    "lifted_bones",
+    "lifted_lengths_row",
+    "lifted_rows",
+    "procrustes_rotation",
+]
 
 #: bones across the skeleton's tree (the tree's own bones come from the keypoint map's parents)
 EXTRA_BONES = (
@@ -130,6 +140,13 @@ class LiftedPose(RowKind):
         self.names = list(names) if names is not None else [f"{a}-{b}" for a, b in self.bones]
         self.keypoints = np.unique(self.bones)
         self.view = view
+
+    def crop(self, lo: int, hi: int) -> LiftedPose | None:
+        """Cropped when the lifter's axes are known (``R_world_lifter``); an estimated
+        rotation is the whole clip's, so those rows are not cropped (``None``)."""
+        if self.R_fixed is None:
+            return None
+        return crop_aligned(self, lo, hi, ("observed", "L", "w"))
 
     def swap_sides(self, frames, perm) -> None:
         """Exchange the lifter's left and right labels at the reconstruction frames
@@ -278,6 +295,9 @@ class LiftedLengths(RowKind):
         self.target = m - m.mean()
         self.weight = float(weight)
         self.keypoints = np.unique(self.bones)
+
+    def crop(self, lo: int, hi: int) -> LiftedLengths:
+        return crop_aligned(self, lo, hi)
 
     def log_lengths(self, state: State) -> np.ndarray:
         """(N, B) the figure's log bone lengths at the state."""

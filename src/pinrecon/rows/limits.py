@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .base import RowBlock, RowKind, State
+from .base import RowBlock, RowKind, State, crop_every_frame
 
 __all__ = ["JointLimits"]
 
@@ -40,6 +40,9 @@ class JointLimits(RowKind):
         self.upper = figure.upper_v[self.cols]
         self.frames = np.arange(n_frames)
         self.inv_sigma = 1.0 / float(sigma)
+
+    def crop(self, lo: int, hi: int) -> JointLimits:
+        return crop_every_frame(self, lo, hi)
 
     def evaluate(self, state: State, jacobian: bool = True) -> RowBlock:
         q = state.Q[:, self.qidx]

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .base import RowBlock, RowKind, State, supported_columns
+from .base import RowBlock, RowKind, State, crop_aligned, supported_columns
 
 __all__ = ["Measurement2D"]
 
@@ -77,6 +77,9 @@ class Measurement2D(RowKind):
             rho = c * c * np.log1p(s / (c * c))
             w = 1.0 / np.sqrt(1.0 + s / (c * c))
         return rho, w
+
+    def crop(self, lo: int, hi: int) -> Measurement2D:
+        return crop_aligned(self, lo, hi, ("uv_px", "observed", "sqrt_w", "uv_filled"))
 
     def camera_at(self, state: State):
         """The camera at the state's globals (the fixed camera without intrinsics)."""

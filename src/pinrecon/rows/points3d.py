@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .base import RowBlock, RowKind, State, supported_columns
+from .base import RowBlock, RowKind, State, crop_aligned, supported_columns
 
 __all__ = ["Points3D"]
 
@@ -43,6 +43,9 @@ class Points3D(RowKind):
         self.sqrt_w = w
         self.p_filled = np.where(observed[..., None], p, 0.0)
         self.observed = observed
+
+    def crop(self, lo: int, hi: int) -> Points3D:
+        return crop_aligned(self, lo, hi, ("sqrt_w", "p_filled", "observed"))
 
     def evaluate(self, state: State, jacobian: bool = True) -> RowBlock:
         slots = state.slot[self.frames]

@@ -26,7 +26,7 @@ import numpy as np
 from .._resources import model_path
 from ..errors import InputError
 from ..io.jsonfile import read_json
-from .base import RowBlock, RowKind, State
+from .base import RowBlock, RowKind, State, crop_every_frame
 
 __all__ = ["PosePrior", "Posture", "pose_prior", "pose_prior_covariance", "pose_prior_distances", "pose_prior_names",
            "posture_row", "prior_for", "rest_directions", "rest_pose", "unused_priors"]
@@ -54,6 +54,9 @@ class Posture(RowKind):
         sig = np.asarray(sigma, float)
         self.inv_sigma = 1.0 / (sig[self.qidx] if sig.ndim else np.full(len(self.qidx), float(sig)))
         self.frames = np.arange(n_frames)
+
+    def crop(self, lo: int, hi: int) -> Posture:
+        return crop_every_frame(self, lo, hi)
 
     def evaluate(self, state: State, jacobian: bool = True) -> RowBlock:
         r = (state.Q[:, self.qidx] - self.q_ref) * self.inv_sigma

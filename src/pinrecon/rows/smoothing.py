@@ -35,6 +35,8 @@ rows are the familiar ``q_{t-1} - 2 q_t + q_{t+1}`` (a diagonal block).
 
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 import pinocchio as pin
 
@@ -89,6 +91,12 @@ class Smoothing(RowKind):
         self.w_dense = w[self.dense_cols]
         self.w_diag = w[self.diag_cols]
         self.frames = np.stack([np.arange(0, self.T - 2), np.arange(1, self.T - 1), np.arange(2, self.T)], 1)
+
+    def crop(self, lo: int, hi: int) -> Smoothing:
+        new = copy.copy(self)
+        new.T = int(hi) - int(lo)
+        new.frames = np.stack([np.arange(0, new.T - 2), np.arange(1, new.T - 1), np.arange(2, new.T)], 1)
+        return new
 
     def evaluate(self, state: State, jacobian: bool = True) -> list[RowBlock]:
         Q = state.Q

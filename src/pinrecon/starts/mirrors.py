@@ -32,6 +32,14 @@ auto camera's focal length, and Pose2Sim's real trial went from 86.8 to 128.9 mm
 One view only (several cameras see depth); :func:`pinrecon.reconstruct` runs it after the turn
 stage on a cold start (a warm start, the workbench's, keeps the reflections it is given).
 
+Each candidate moves its span and ``margin_s`` (:data:`MARGIN_S`) of the clip on either side,
+no more: where the clip is longer than that, the pull and the release are solved on the problem
+cropped to those frames (:meth:`~pinrecon.problem.ReconstructionProblem.cropped`), its two
+end frames on each inner side held at the solution (:data:`HOLD_SIGMA`), and the candidate is
+judged by the whole clip's cost with the crop put back. A candidate then costs in proportion to
+its span, not to the clip, and the stage in proportion to the clip (trying every span on the
+whole clip grew with its square: 432 of 732 s on 1000 frames, ``bench/README.md``).
+
 Arms only: chains to a foot point (:func:`pinrecon.contact.foot_keypoints`) are not tried by
 default. On the dance the legs held about 45 of the 927 nats; without them bench_real's dance
 moved 1.6-2.1 mm (48.1 / 18.5 with first and last keyframes, 62.4 / 18.8 without, against
@@ -50,8 +58,8 @@ from itertools import pairwise
 import numpy as np
 
 from ..contact import foot_keypoints
-from ..rows import Points3D
-from ..solver import SolverOptions, globals_of, solve
+from ..rows import JointKeyframes, Points3D
+from ..solver import SolverOptions, flatten_blocks, globals_of, solve
 from .limbs import camera_rays, limb_chains, sphere_ray
 
 #: nats a mirrored span must save to be kept (a likelihood ratio of e^10): with the clip's
@@ -65,6 +73,13 @@ MIN_GAIN = 10.0
 #: 41.7 mm with first and last keyframes and 62.4 -> 41.1 without; Pose2Sim's real trial with
 #: no camera file 85.8 -> 84.2 mm, with its calibration (17 COCO points) 103.2 either way
 NEAR = 0.25
+
+#: seconds of the clip on each side of a candidate span that its solves move (the rest held);
+#: a clip no longer than the span and its margins is solved whole
+MARGIN_S = 1.0
+
+#: standard deviation (radians, metres) holding the crop's end frames at the solution
+HOLD_SIGMA = 1e-5
 
 #: the candidates' modes (:func:`mirrored_points`), indexed in ``extras["solution_mirrors"]``
 MODES = ("first", "both", "end")
@@ -198,6 +213,34 @@ def _turned(camera, K, K_new, kp, mode: str, min_ratio: float = 0.1) -> bool:
     return counted > 0 and 2 * opposite >= counted
 
 
+def _held_ends(figure, X, lo: int, hi: int, T: int) -> list:
+    """Rows holding the two frames at each inner end of the crop ``lo .. hi - 1`` of a
+    ``T``-frame clip at the solution ``X`` (T, nq), every joint (:data:`HOLD_SIGMA`): with
+    them fixed, the smoothing rows the crop leaves out (those reaching outside it) do not
+    change, so the candidate's cost on the whole clip is the crop's change and no more."""
+    f = sorted({t for t in (lo, lo + 1) if lo > 0} | {t for t in (hi - 2, hi - 1) if hi < T})
+    if not f:
+        return []
+    m = figure.model
+    names = list(m.names[1:])
+    items = [(t - lo, HOLD_SIGMA, {n: X[t, m.idx_qs[j] : m.idx_qs[j] + m.nqs[j]] for j, n in enumerate(names, 1)})
+             for t in f]
+    return [JointKeyframes(figure, items)]
+
+
+def _spliced(problem, cur, part, lo: int, g):
+    """``cur`` with frames ``lo ..`` replaced by the cropped solve ``part``'s, and its cost
+    on the whole problem (the candidate judged as the clip's solution)."""
+    X = np.array(cur.x, float)
+    X[lo : lo + len(part.x)] = part.x
+    blocks = flatten_blocks(problem.evaluate(X, False) if g is None else problem.evaluate(X, False, g))
+    costs: dict[str, float] = {}
+    for blk in blocks:
+        costs[blk.name] = costs.get(blk.name, 0.0) + blk.cost
+    return replace(cur, x=X, cost=float(sum(costs.values())), costs=costs, iterations=part.iterations,
+                   converged=part.converged, status=part.status, report=list(part.report))
+
+
 def _seen(problem, res):
     """A solve's global unknowns, its (first) camera at them and its keypoints (T, K, 3)."""
     g = globals_of(res)
@@ -207,7 +250,7 @@ def _seen(problem, res):
 def mirror_stage(problem, res, options: SolverOptions | None = None, callback=None, *, min_span_s: float = 0.3,
                  min_depth: float = 0.3, sigma_m: float = 0.02, pull_iterations: int = 15,
                  trial_iterations: int = 40, min_gain: float = MIN_GAIN, passes: int = 1, near: float = NEAR,
-                 skip: Sequence[str] | None = None, observe=None):
+                 skip: Sequence[str] | None = None, observe=None, margin_s: float = MARGIN_S):
     """The solved motion ``res`` with its limbs' spans mirrored where that lowers the MAP
     cost (module docstring); ``passes`` rounds at most, a round after one that kept
     nothing is not run; chains holding a keypoint named in ``skip`` are not tried, by
@@ -232,6 +275,8 @@ def mirror_stage(problem, res, options: SolverOptions | None = None, callback=No
     trial = replace(options, max_iterations=min(options.max_iterations, trial_iterations))
     pull_options = replace(options, max_iterations=min(options.max_iterations, pull_iterations))
     min_len = max(2, round(min_span_s * float(problem.fps or 30.0)))
+    T = problem.n_frames
+    margin = max(min_len, round(margin_s * float(problem.fps or 30.0)))
     # every tracked point is held where it is, the chain's ends pulled to their mirrors: the
     # limb turns over, not the body round it
     pinned = np.unique(np.concatenate([np.asarray(problem.measurement.keypoints, int)] + [c.kp for c in chains]))
@@ -248,10 +293,24 @@ def mirror_stage(problem, res, options: SolverOptions | None = None, callback=No
                     moved = mirrored_points(camera, K[a:b][:, chain.kp], mode)
                     for j, k in enumerate(chain.kp[1:]):
                         targets[:, int(np.searchsorted(pinned, k))] = moved[:, j]
-                    pull = problem.with_rows([Points3D(np.arange(a, b), pinned, targets, sigma_m, name="mirror")])
                     held = None if g is None else np.zeros(len(g), bool)  # a mirror judged at the solution's globals
-                    pulled = solve(pull, cur.x, pull_options, callback, active=problem.active, g0=g, active_globals=held)
-                    cand = solve(problem, pulled.x, trial, callback, active=problem.active, g0=g, active_globals=held)
+                    lo, hi = max(0, a - margin), min(T, b + margin)
+                    sub = problem.cropped(lo, hi) if hi - lo < T else None
+                    if sub is None:  # the whole clip
+                        pull = problem.with_rows([Points3D(np.arange(a, b), pinned, targets, sigma_m, name="mirror")])
+                        pulled = solve(pull, cur.x, pull_options, callback, active=problem.active, g0=g,
+                                       active_globals=held)
+                        cand = solve(problem, pulled.x, trial, callback, active=problem.active, g0=g,
+                                     active_globals=held)
+                    else:  # the span and its margins alone, their ends held where they are; judged on the clip
+                        ends = _held_ends(fig, cur.x, lo, hi, T)
+                        pull = sub.with_rows([Points3D(np.arange(a - lo, b - lo), pinned, targets, sigma_m,
+                                                       name="mirror")] + ends)
+                        pulled = solve(pull, cur.x[lo:hi], pull_options, callback, active=problem.active, g0=g,
+                                       active_globals=held)
+                        part = solve(sub.with_rows(ends), pulled.x, trial, callback, active=problem.active, g0=g,
+                                     active_globals=held)
+                        cand = _spliced(problem, cur, part, lo, g)
                     gain = cost - float(cand.cost)
                     keep = gain > min_gain and cand.status != "stopped by callback"
                     turned = _turned(camera, K[a:b], problem.keypoints(fig.normalize(cand.x)[a:b], g), chain.kp, mode)
