@@ -27,7 +27,7 @@ import numpy as np
 
 from ..kinematics import keypoint_jacobians_from_world, point_jacobian_factors, rows_of
 
-__all__ = ["RowBlock", "RowKind", "State", "crop_aligned", "crop_every_frame", "supported_columns"]
+__all__ = ["NoRows", "RowBlock", "RowKind", "State", "crop_aligned", "crop_every_frame", "supported_columns"]
 
 
 @dataclass
@@ -97,12 +97,27 @@ def crop_aligned(row, lo: int, hi: int, aligned=()):
     whose frame lies in ``lo .. hi - 1``: ``frames`` shifted by ``-lo`` and the attributes
     named in ``aligned`` (arrays whose first axis follows ``frames``) selected alike."""
     keep = (row.frames >= lo) & (row.frames < hi)
+    if not keep.any():
+        return NoRows(row.name)
     new = copy.copy(row)
     for name in aligned:
         setattr(new, name, getattr(row, name)[keep])
     new.frames = row.frames[keep] - lo
     new.kinematic_frames = new.frames
     return new
+
+
+class NoRows(RowKind):
+    """A row kind cropped to frames where it has no row (:meth:`RowKind.crop`)."""
+
+    def __init__(self, name: str):
+        self.name = name
+
+    def evaluate(self, state: State, jacobian: bool = True) -> list:
+        return []
+
+    def crop(self, lo: int, hi: int) -> NoRows:
+        return self
 
 
 def crop_every_frame(row, lo: int, hi: int):

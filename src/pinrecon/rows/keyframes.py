@@ -20,7 +20,7 @@ import copy
 import numpy as np
 import pinocchio as pin
 
-from .base import RowBlock, RowKind, State
+from .base import NoRows, RowBlock, RowKind, State
 
 __all__ = ["JointKeyframes"]
 
@@ -73,6 +73,8 @@ class JointKeyframes(RowKind):
     def crop(self, lo: int, hi: int) -> JointKeyframes:
         new = copy.copy(self)
         keep = [i for i, it in enumerate(self.items) if lo <= it[0] < hi]
+        if not keep:
+            return NoRows(self.name)
         new.items = [(self.items[i][0] - lo,) + tuple(self.items[i][1:]) for i in keep]
         new._euclid = [self._euclid[i] for i in keep]
         new.frames = np.array([it[0] for it in new.items], dtype=int)
