@@ -32,13 +32,12 @@ auto camera's focal length, and Pose2Sim's real trial went from 86.8 to 128.9 mm
 One view only (several cameras see depth); :func:`pinrecon.reconstruct` runs it after the turn
 stage on a cold start (a warm start, the workbench's, keeps the reflections it is given).
 
-Each candidate moves its span and ``margin_s`` (:data:`MARGIN_S`) of the clip on either side,
-no more: where the clip is longer than that, the pull and the release are solved on the problem
-cropped to those frames (:meth:`~pinrecon.problem.ReconstructionProblem.cropped`), its two
+On a clip longer than ``whole_frames`` (:data:`WHOLE_FRAMES`), each candidate moves its span
+and ``margin_s`` (:data:`MARGIN_S`) of the clip on either side, no more: the pull and the
+release are solved on the problem cropped to those frames (:meth:`~pinrecon.problem.ReconstructionProblem.cropped`), its two
 end frames on each inner side held at the solution (:data:`HOLD_SIGMA`), and the candidate is
-judged by the whole clip's cost with the crop put back. A candidate then costs in proportion to
-its span, not to the clip, and the stage in proportion to the clip (trying every span on the
-whole clip grew with its square: 432 of 732 s on 1000 frames, ``bench/README.md``).
+judged by the whole clip's cost with the crop put back: a candidate costs in proportion to its
+span, not to the clip, and the stage in proportion to the clip (``bench/bench_long_clip.py``).
 
 Arms only: chains to a foot point (:func:`pinrecon.contact.foot_keypoints`) are not tried by
 default. On the dance the legs held about 45 of the 927 nats; without them bench_real's dance
@@ -77,6 +76,14 @@ NEAR = 0.25
 #: seconds of the clip on each side of a candidate span that its solves move (the rest held);
 #: a clip no longer than the span and its margins is solved whole
 MARGIN_S = 1.0
+
+#: clips of at most this many frames try every candidate on the whole clip; longer ones on the
+#: crop of its span and margins. On bench_real's 591-frame spin without keyframes (mean of 45
+#: and 60 degrees) the whole clip's trials gave 36.7 mm / 13.8 % and the crops 41.3-41.8 mm /
+#: 14.2-15.4 % (margins of 0.5-2 s): the whole clip's trials also improve the solution away
+#: from the span. Past this length their cost, which grows with the square of the clip, rules
+#: them out (1000 frames: 440 of the call's 728 s, ``bench/bench_long_clip.py``)
+WHOLE_FRAMES = 600
 
 #: standard deviation (radians, metres) holding the crop's end frames at the solution
 HOLD_SIGMA = 1e-5
@@ -250,7 +257,8 @@ def _seen(problem, res):
 def mirror_stage(problem, res, options: SolverOptions | None = None, callback=None, *, min_span_s: float = 0.3,
                  min_depth: float = 0.3, sigma_m: float = 0.02, pull_iterations: int = 15,
                  trial_iterations: int = 40, min_gain: float = MIN_GAIN, passes: int = 1, near: float = NEAR,
-                 skip: Sequence[str] | None = None, observe=None, margin_s: float = MARGIN_S):
+                 skip: Sequence[str] | None = None, observe=None, margin_s: float = MARGIN_S,
+                 whole_frames: int = WHOLE_FRAMES):
     """The solved motion ``res`` with its limbs' spans mirrored where that lowers the MAP
     cost (module docstring); ``passes`` rounds at most, a round after one that kept
     nothing is not run; chains holding a keypoint named in ``skip`` are not tried, by
@@ -262,7 +270,8 @@ def mirror_stage(problem, res, options: SolverOptions | None = None, callback=No
     ``problem.reports["mirrors"]`` (:class:`MirrorStage`). ``observe``, for diagnostics
     (``bench/diagnose_mirrors.py``), is called after every candidate as
     ``observe(mirror, current, candidate)``: the :class:`Mirror`, the solve it was tried on
-    and the candidate's solve (both at the solution's global unknowns)."""
+    and the candidate's solve (both at the solution's global unknowns). ``margin_s`` and
+    ``whole_frames``: the crops of a long clip's candidates (module docstring)."""
     if res.status == "stopped by callback" or len(getattr(problem, "views", ())) != 1:
         return res
     fig = problem.figure
@@ -295,7 +304,7 @@ def mirror_stage(problem, res, options: SolverOptions | None = None, callback=No
                         targets[:, int(np.searchsorted(pinned, k))] = moved[:, j]
                     held = None if g is None else np.zeros(len(g), bool)  # a mirror judged at the solution's globals
                     lo, hi = max(0, a - margin), min(T, b + margin)
-                    sub = problem.cropped(lo, hi) if hi - lo < T else None
+                    sub = problem.cropped(lo, hi) if T > whole_frames and hi - lo < T else None
                     if sub is None:  # the whole clip
                         pull = problem.with_rows([Points3D(np.arange(a, b), pinned, targets, sigma_m, name="mirror")])
                         pulled = solve(pull, cur.x, pull_options, callback, active=problem.active, g0=g,
