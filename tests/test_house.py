@@ -147,7 +147,7 @@ LAYERS = [
                 "pinrecon.io.tracks_json", "pinrecon.io.calibration", "pinrecon.io.results", "pinrecon.io.trc",
                 "pinrecon.video", "pinrecon.io.amc", "pinrecon.io.lifters", "pinrecon.io.motion"]),
     ("rows and solver", ["pinrecon.rows", "pinrecon.weights", "pinrecon.banded", "pinrecon.solver"]),
-    ("problem", ["pinrecon.problem", "pinrecon.contact", "pinrecon.identifiability"]),
+    ("problem", ["pinrecon.views", "pinrecon.problem", "pinrecon.contact", "pinrecon.identifiability"]),
     ("starts", ["pinrecon.starts", "pinrecon.planarity"]),
     ("result", ["pinrecon.result"]),
     ("pipeline", ["pinrecon.reconstruct", "pinrecon.stages", "pinrecon.synthetic", "pinrecon.faults", "pinrecon.metrics",

@@ -14,7 +14,6 @@ the pipeline (:mod:`pinrecon.reconstruct`) and the planarity seed import it.
 
 from __future__ import annotations
 
-import math
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
@@ -24,7 +23,6 @@ import numpy as np
 from .cameras import Perspective
 from .errors import InputError, UnknownNameError
 from .figure_files import load_keypoint_map
-from .io.calibration import CalibratedCamera
 from .layouts import human_keypoint_map, human_map_for_names, shared_point_names
 from .proportions import Proportions
 from .rows import (
@@ -42,6 +40,7 @@ from .rows.bones import skeleton_rows
 from .rows.lifted import lifted_rows
 from .rows.posture import posture_row, rest_pose
 from .tracks import Keyframe, Keyframes, Markers, Tracks
+from .views import camera_views, upsample_factor, view_grid
 from .weights import Weights
 
 __all__ = [
@@ -289,56 +288,44 @@ class ReconstructionProblem:
     def retract(self, Q, dQ):
         return self.figure.integrate(Q, dQ)
 
+    def _rebuilt(self, n_frames: int, rows: Sequence, **changed) -> ReconstructionProblem:
+        """A copy over ``n_frames`` frames with ``rows`` and the constructor's arguments ``changed``."""
+        new = ReconstructionProblem.__new__(ReconstructionProblem)
+        new.__dict__.update(self.__dict__)
+        kw = {k: getattr(self, k) for k in ("fps", "factor", "tracks", "camera", "keyframes", "weights", "measurement",
+                                            "smoothing", "active", "markers", "views", "proportions", "g0",
+                                            "global_names", "calibrate")}
+        ReconstructionProblem.__init__(new, self.figure, n_frames, rows, **{**kw, **changed})
+        return new
+
     def with_rows(self, extra: Sequence, *, after: int | None = None) -> ReconstructionProblem:
         """The same problem with ``extra`` rows inserted after the first ``after`` rows
         (by default after the measurement rows of every view, limits and smoothing)."""
         if after is None:
             after = max(len(self.views), 1) + 2
-        new = ReconstructionProblem.__new__(ReconstructionProblem)
-        new.__dict__.update(self.__dict__)
-        ReconstructionProblem.__init__(
-            new, self.figure, self.n_frames, self.rows[:after] + list(extra) + self.rows[after:],
-            fps=self.fps, factor=self.factor, tracks=self.tracks, camera=self.camera, keyframes=self.keyframes,
-            weights=self.weights, measurement=self.measurement, smoothing=self.smoothing, active=self.active,
-            markers=self.markers, views=self.views, proportions=self.proportions, g0=self.g0,
-            global_names=self.global_names, calibrate=self.calibrate,
-        )
+        new = self._rebuilt(self.n_frames, self.rows[:after] + list(extra) + self.rows[after:])
         new.reports = self.reports
         return new
 
     def cropped(self, lo: int, hi: int) -> ReconstructionProblem | None:
-        """The problem of frames ``lo .. hi - 1`` alone, a problem of ``hi - lo`` frames:
-        every row kind's :meth:`~pinrecon.rows.base.RowKind.crop` (frames shifted to start at
-        0; row groups reaching outside the range, e.g. the smoothing rows across its ends,
-        dropped), the same globals. Solving it moves those frames with the rest of the clip
-        held, at a cost in proportion to its length, not the clip's. A view's tracks are cut to
-        the range when its frame step is 1 (else ``None``); keyframes are not carried (a start
-        of the cropped problem reads neither). ``None`` when a row kind cannot be cropped
-        (e.g. the lifted rows with an estimated rotation, the whole clip's)."""
+        """The problem of frames ``lo .. hi - 1`` alone (``hi - lo`` frames, the same globals):
+        every row kind's :meth:`~pinrecon.rows.base.RowKind.crop`, frames shifted to start at 0,
+        row groups reaching outside the range (the smoothing across its ends) left out; a view's
+        tracks cut to the range (``None`` when its frame step is not 1), no keyframes (for a
+        solve, not a start). ``None`` when a row kind cannot be cropped (e.g. lifted rows whose
+        rotation is estimated from the whole clip)."""
         lo, hi = int(lo), int(hi)
         if not 0 <= lo < hi <= self.n_frames:
             raise InputError(f"frames {lo}..{hi - 1} are not within the problem's {self.n_frames}", field="frames")
-        rows, new_of = [], {}
-        for r in self.rows:
-            c = r.crop(lo, hi)
-            if c is None:
-                return None
-            rows.append(c)
-            new_of[id(r)] = c
+        new_of = {id(r): r.crop(lo, hi) for r in self.rows}
+        if any(c is None for c in new_of.values()):
+            return None
         views = [replace(v, measurement=new_of.get(id(v.measurement), v.measurement),
                          tracks=v.tracks.frames(lo, hi) if v.factor == 1 and v.tracks is not None else None)
                  for v in self.views]
-        measurement = new_of.get(id(self.measurement)) if self.measurement is not None else None
-        smoothing = new_of.get(id(self.smoothing)) if self.smoothing is not None else None
-        new = ReconstructionProblem.__new__(ReconstructionProblem)
-        new.__dict__.update(self.__dict__)
-        ReconstructionProblem.__init__(
-            new, self.figure, hi - lo, rows, fps=self.fps, factor=self.factor,
-            tracks=views[0].tracks if views else None, camera=self.camera, keyframes=None, weights=self.weights,
-            measurement=measurement, smoothing=smoothing, active=self.active, markers=None, views=views,
-            proportions=self.proportions, g0=self.g0, global_names=self.global_names, calibrate=self.calibrate,
-        )
-        return new
+        return self._rebuilt(hi - lo, [new_of[id(r)] for r in self.rows], tracks=views[0].tracks if views else None,
+                             keyframes=None, markers=None, views=views, measurement=new_of.get(id(self.measurement)),
+                             smoothing=new_of.get(id(self.smoothing)))
 
     def with_globals(self, g) -> ReconstructionProblem:
         """The same problem started (and, in solves without ``g0``, held) at the globals ``g``."""
@@ -348,19 +335,6 @@ class ReconstructionProblem:
 
 
 # ----------------------------------------------------------------------------- helpers
-def upsample_factor(fps_obs: float, fps_out: float | None) -> int:
-    """Reconstruction frames per observed frame (``fps_out`` an integer multiple of ``fps_obs``)."""
-    if fps_out is None:
-        return 1
-    ratio = float(fps_out) / float(fps_obs)
-    factor = int(round(ratio))
-    if factor < 1 or abs(ratio - factor) > 1e-6 * ratio:
-        raise InputError(
-            f"fps_out {fps_out:g} must be an integer multiple of the tracks' {fps_obs:g} fps", field="fps_out"
-        )
-    return factor
-
-
 def shared_keypoints(figure, names, source, what="tracks", warn=True) -> list[str]:
     """The names the figure has, in the given order. Typos of figure keypoints, no or
     fewer than 4 shared points are errors (:func:`pinrecon.layouts.shared_point_names`);
@@ -460,101 +434,6 @@ def observable_mask(figure, names, keyframes) -> np.ndarray:
     return active
 
 
-def camera_views(tracks, camera) -> list[tuple[str, Tracks, object]]:
-    """Pair tracks with cameras: ``(name, tracks, camera)`` per camera, in order.
-
-    ``tracks`` and ``camera`` are one :class:`Tracks` and one camera, or two sequences of
-    the same length paired in order. A camera may be a
-    :class:`~pinrecon.io.calibration.CalibratedCamera` (from
-    :func:`~pinrecon.io.calibration.load_cameras`), whose name is kept; other cameras are
-    named ``camera1``, ``camera2``, ...
-    """
-    many = isinstance(tracks, (list, tuple)) or isinstance(camera, (list, tuple))
-    tl = list(tracks) if isinstance(tracks, (list, tuple)) else [tracks]
-    cl = list(camera) if isinstance(camera, (list, tuple)) else [camera]
-    if len(tl) != len(cl):
-        raise InputError(
-            f"{len(tl)} tracks but {len(cl)} cameras: give one camera per tracks, paired in order", field="camera"
-        )
-    if not tl:
-        raise InputError("no tracks given", field="tracks")
-    out, seen = [], set()
-    for i, (trk, cam) in enumerate(zip(tl, cl)):
-        where = f"[{i}]" if many else ""
-        name = f"camera{i + 1}"
-        if isinstance(cam, CalibratedCamera):
-            name, cam = cam.name, cam.camera
-        if not isinstance(trk, Tracks):
-            raise InputError(f"tracks must be a pinrecon.Tracks, got {type(trk).__name__}", field=f"tracks{where}")
-        if not (hasattr(cam, "project") and hasattr(cam, "project_with_jacobian")):
-            raise InputError(
-                f"camera must be a pinrecon camera (Orthographic, Perspective) or a CalibratedCamera, "
-                f"got {type(cam).__name__}",
-                field=f"camera{where}",
-            )
-        if name in seen:
-            name = f"{name}#{i + 1}"
-        seen.add(name)
-        out.append((name, trk, cam))
-    return out
-
-
-def view_grid(tracks: Sequence[Tracks], names: Sequence[str], *, fps_out=None, factor=None) -> tuple[list[int], int, float]:
-    """The reconstruction's time grid for several cameras' tracks: ``(factors, T, fps)``.
-
-    Frame ``i`` of camera ``c``'s tracks is reconstruction frame ``i * factors[c]``: every
-    camera's tracks start at the same instant (the first frame). The grid runs at
-    ``fps_out`` (or ``factor`` times the first camera's rate), by default the highest
-    camera rate, which every camera's rate must divide. The cameras must end together:
-    each one's last frame within one of its own frame periods of the grid's end (with one
-    rate: the same number of frames). Anything else is one clear error.
-    """
-    tracks = list(tracks)
-    for t, name in zip(tracks, names):
-        if t.T < 1:
-            who = "tracks" if len(tracks) == 1 else f"tracks of camera {name!r}"
-            raise InputError(f"{who} have no frames", file=t.source, field="points")
-    if len(tracks) == 1:
-        t = tracks[0]
-        f = upsample_factor(t.fps, fps_out) if factor is None else int(factor)
-        return [f], (t.T - 1) * f + 1, t.fps * f
-    if factor is not None:
-        fps = tracks[0].fps * int(factor)
-    else:
-        fps = float(fps_out) if fps_out is not None else max(t.fps for t in tracks)
-    factors = []
-    for t, name in zip(tracks, names):
-        ratio = fps / t.fps
-        f = round(ratio)
-        if f < 1 or abs(ratio - f) > 1e-6 * ratio:
-            rates = ", ".join(f"{n!r} {u.fps:g} fps" for n, u in zip(names, tracks))
-            hint = ""
-            if all(float(u.fps).is_integer() for u in tracks):
-                hint = f" (e.g. fps_out={math.lcm(*[int(u.fps) for u in tracks])})"
-            raise InputError(
-                f"the cameras run at different rates ({rates}) and {t.fps:g} fps does not divide the "
-                f"reconstruction's {fps:g} fps: pass fps_out, a common multiple of every camera's rate{hint}",
-                file=t.source,
-                field="fps_out" if fps_out is not None else "fps",
-            )
-        factors.append(f)
-    spans = [(t.T - 1) * f for t, f in zip(tracks, factors)]
-    T = max(spans) + 1
-    for t, f, span, name in zip(tracks, factors, spans, names):
-        if (T - 1) - span >= f:
-            longest = int(np.argmax(spans))
-            raise InputError(
-                f"camera {name!r} has {t.T} frames at {t.fps:g} fps ({(t.T - 1) / t.fps:.3f} s) but camera "
-                f"{names[longest]!r} has {tracks[longest].T} frames at {tracks[longest].fps:g} fps "
-                f"({(tracks[longest].T - 1) / tracks[longest].fps:.3f} s): the cameras' tracks must start at the "
-                f"same instant and end together; cut them to the same span with Tracks.frames(start, stop)",
-                file=t.source,
-                field="points",
-            )
-    return factors, T, fps
-
-
-# ----------------------------------------------------------------------------- builders
 def make_problem(
     figure,
     tracks: Tracks | Sequence[Tracks],
