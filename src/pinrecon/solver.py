@@ -49,7 +49,7 @@ from scipy.linalg import LinAlgError
 
 from .banded import ActiveNormalEquations, ArrowheadFactor, BandedNormalEquations, schur_complement
 
-__all__ = ["SolverOptions", "IterationReport", "SolveResult", "flatten_blocks", "globals_of", "globals_information", "solve", "BandedNormalEquations", "ArrowheadFactor"]
+__all__ = ["SolverOptions", "IterationReport", "SolveResult", "costs_at", "flatten_blocks", "globals_of", "globals_information", "solve", "BandedNormalEquations", "ArrowheadFactor"]
 
 
 @dataclass
@@ -184,6 +184,12 @@ def _costs(blocks) -> dict[str, float]:
     for b in blocks:
         out[b.name] = out.get(b.name, 0.0) + b.cost
     return out
+
+
+def costs_at(problem, x, g=None) -> dict[str, float]:
+    """The MAP cost of ``problem`` at the trajectory ``x`` and the globals ``g`` (default its
+    ``g0``), per row kind (``0.5 |r|^2``, or a robust kind's own cost)."""
+    return _costs(_flatten(problem.evaluate(x, False) if g is None else problem.evaluate(x, False, g)))
 
 
 def _blocks_times(blocks, dx, dg=None):

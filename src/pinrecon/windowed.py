@@ -51,7 +51,7 @@ from .identifiability import proportions_identifiability
 from .prior_yield import adapt_prior as adapt_to_keyframes
 from .prior_yield import decided_by_keyframes, pose_prior_row, with_pose_prior
 from .problem import make_problem
-from .solver import SolveResult, SolverOptions, solve
+from .solver import SolveResult, SolverOptions, costs_at, solve
 from .starts import initial_trajectory
 from .starts.mirrors import MirrorStage, mirror_stage
 from .starts.turns import TurnStage, turn_stage
@@ -223,10 +223,7 @@ def solve_windowed(problem, start="auto", options: SolverOptions | None = None, 
             key = "faults" if v == 0 else f"faults_{problem.camera_names[v]}"
             problem.reports[key] = _merge_faults(items, prefix="" if v == 0 else f"{problem.camera_names[v]}_")
     g_final = g_solved if g_solved is not None else problem.g0
-    blocks = problem.evaluate(X, False) if g_final is None else problem.evaluate(X, False, g_final)
-    costs: dict[str, float] = {}
-    for b in _flat(blocks):
-        costs[b.name] = costs.get(b.name, 0.0) + b.cost
+    costs = costs_at(problem, X, g_final)
     status = "stopped by callback" if stopped else (
         f"windowed ({len(plan)} windows of {window} frames, overlap {overlap}): "
         + ", ".join(f"{s} x{statuses.count(s)}" for s in sorted(set(statuses))))
@@ -236,14 +233,6 @@ def solve_windowed(problem, start="auto", options: SolverOptions | None = None, 
     out.g = g_final
     out.identifiability = identified
     return out
-
-
-def _flat(blocks):
-    for b in blocks:
-        if isinstance(b, (list, tuple)):
-            yield from _flat(b)
-        elif b is not None:
-            yield b
 
 
 def _window_problem(problem, a: int, e: int, *, free_globals: bool, g_held):

@@ -54,6 +54,11 @@ def smoothing_sigmas(figure, root_translation=5.0, root_rotation=10.0, joints=10
     return sig
 
 
+def _triples(T: int) -> np.ndarray:
+    """(T - 2, 3) the frames (t - 1, t, t + 1) of the second differences, t = 1 .. T - 2."""
+    return np.stack([np.arange(0, T - 2), np.arange(1, T - 1), np.arange(2, T)], 1)
+
+
 class Smoothing(RowKind):
     """Second-difference rows on frames (t-1, t, t+1) for t = 1..T-2.
 
@@ -90,12 +95,12 @@ class Smoothing(RowKind):
         w = scale / np.asarray(sigma, float)
         self.w_dense = w[self.dense_cols]
         self.w_diag = w[self.diag_cols]
-        self.frames = np.stack([np.arange(0, self.T - 2), np.arange(1, self.T - 1), np.arange(2, self.T)], 1)
+        self.frames = _triples(self.T)
 
     def crop(self, lo: int, hi: int) -> Smoothing:
         new = copy.copy(self)
         new.T = int(hi) - int(lo)
-        new.frames = np.stack([np.arange(0, new.T - 2), np.arange(1, new.T - 1), np.arange(2, new.T)], 1)
+        new.frames = _triples(new.T)
         return new
 
     def evaluate(self, state: State, jacobian: bool = True) -> list[RowBlock]:

@@ -58,7 +58,7 @@ import numpy as np
 
 from ..contact import foot_keypoints
 from ..rows import JointKeyframes, Points3D
-from ..solver import SolverOptions, flatten_blocks, globals_of, solve
+from ..solver import SolverOptions, costs_at, globals_of, solve
 from .limbs import camera_rays, limb_chains, sphere_ray
 
 #: nats a mirrored span must save to be kept (a likelihood ratio of e^10): with the clip's
@@ -240,10 +240,7 @@ def _spliced(problem, cur, part, lo: int, g):
     on the whole problem (the candidate judged as the clip's solution)."""
     X = np.array(cur.x, float)
     X[lo : lo + len(part.x)] = part.x
-    blocks = flatten_blocks(problem.evaluate(X, False) if g is None else problem.evaluate(X, False, g))
-    costs: dict[str, float] = {}
-    for blk in blocks:
-        costs[blk.name] = costs.get(blk.name, 0.0) + blk.cost
+    costs = costs_at(problem, X, g)
     return replace(cur, x=X, cost=float(sum(costs.values())), costs=costs, iterations=part.iterations,
                    converged=part.converged, status=part.status, report=list(part.report))
 
@@ -306,20 +303,15 @@ def mirror_stage(problem, res, options: SolverOptions | None = None, callback=No
                     lo, hi = max(0, a - margin), min(T, b + margin)
                     sub = problem.cropped(lo, hi) if T > whole_frames and hi - lo < T else None
                     if sub is None:  # the whole clip
-                        pull = problem.with_rows([Points3D(np.arange(a, b), pinned, targets, sigma_m, name="mirror")])
-                        pulled = solve(pull, cur.x, pull_options, callback, active=problem.active, g0=g,
-                                       active_globals=held)
-                        cand = solve(problem, pulled.x, trial, callback, active=problem.active, g0=g,
-                                     active_globals=held)
+                        lo, hi, base = 0, T, problem
                     else:  # the span and its margins alone, their ends held where they are; judged on the clip
-                        ends = _held_ends(fig, cur.x, lo, hi, T)
-                        pull = sub.with_rows([Points3D(np.arange(a - lo, b - lo), pinned, targets, sigma_m,
-                                                       name="mirror")] + ends)
-                        pulled = solve(pull, cur.x[lo:hi], pull_options, callback, active=problem.active, g0=g,
-                                       active_globals=held)
-                        part = solve(sub.with_rows(ends), pulled.x, trial, callback, active=problem.active, g0=g,
-                                     active_globals=held)
-                        cand = _spliced(problem, cur, part, lo, g)
+                        base = sub.with_rows(_held_ends(fig, cur.x, lo, hi, T))
+                    pull = base.with_rows([Points3D(np.arange(a - lo, b - lo), pinned, targets, sigma_m, name="mirror")])
+                    pulled = solve(pull, cur.x[lo:hi], pull_options, callback, active=problem.active, g0=g,
+                                   active_globals=held)
+                    cand = solve(base, pulled.x, trial, callback, active=problem.active, g0=g, active_globals=held)
+                    if sub is not None:
+                        cand = _spliced(problem, cur, cand, lo, g)
                     gain = cost - float(cand.cost)
                     keep = gain > min_gain and cand.status != "stopped by callback"
                     turned = _turned(camera, K[a:b], problem.keypoints(fig.normalize(cand.x)[a:b], g), chain.kp, mode)
