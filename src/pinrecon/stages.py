@@ -31,7 +31,8 @@ changed). A stage that has nothing to do returns ``None`` and is reported as ski
            skipped when the tracks carry a lifter's 3D
 ``faults`` left/right swaps of the detector repaired (warm re-solve), outliers reported
 ``focal``  an auto camera's focal length carried down its cost valley (with a lifter's 3D, its
-           solves at most :data:`FOCAL_ITERATIONS_LIFTED` iterations each)
+           solves at most :data:`FOCAL_ITERATIONS_LIFTED` iterations each, and
+           :data:`FOCAL_ROUNDS_LIFTED` move)
 ``feet``   feet on the ground: floor and contact rows, solved again warm
 =========  ======================================================================================
 
@@ -71,6 +72,10 @@ from .unfamiliar import BROADER_PRIOR, broader_prior, unfamiliar_poses, unfamili
 #: the focal stage's solves with lifted cues: at most this many iterations each (bench_stages:
 #: the same PA-MPJPE and flips on the five clips, the stage 30 % shorter on Pose2Sim's trial)
 FOCAL_ITERATIONS_LIFTED = 10
+#: with lifted cues, the focal stage moves down its valley once (then profiles it again for the
+#: report): the cues leave the profile no valley on any bench_stages clip, and further moves
+#: changed no PA-MPJPE or flip on its five clips (bench_video's four: the mean the same to 0.1 mm)
+FOCAL_ROUNDS_LIFTED = 1
 #: with lifted cues, where the focal length's cost profile is no valley, the focal stage moves it
 #: only within these multiples of the image's diagonal (fields of view of about 36-118 degrees):
 #: bench_lifted_real's Pose2Sim camera 3 went down such a profile to 3.1 diagonals (6876 px, the
@@ -279,13 +284,14 @@ def _focal(run: Run) -> str | None:
     if not run.auto or run.auto.get("projection") != "perspective":
         return None
     before = run.res
-    options = run.options
+    options, rounds = run.options, {}
     if _cued(run):  # the lifted cues hold the poses: a few steps settle each point of the valley
         options = replace(options or SolverOptions(), max_iterations=FOCAL_ITERATIONS_LIFTED)
+        rounds = {"rounds": FOCAL_ROUNDS_LIFTED}
     span = None
     if _cued(run) and run.auto.get("image_size"):  # a profile that is no valley moves only to plausible lengths
         span = tuple(f * float(np.hypot(*run.auto["image_size"])) for f in FOCAL_PLAUSIBLE)
-    run.res, run.auto = settle_focal(run.problem, run.res, run.auto, options=options, undetermined_range=span)
+    run.res, run.auto = settle_focal(run.problem, run.res, run.auto, options=options, undetermined_range=span, **rounds)
     if run.res is before:
         return "focal length at the bottom of its valley"
     report_outliers(run.problem, run.res)  # restarted down the valley: the outliers of where it ended
