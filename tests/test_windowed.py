@@ -129,6 +129,65 @@ def test_progress_reports_every_window_and_stops_on_request(walk_300):
     assert stop.status == "stopped by callback" and stop.x.shape == (300, fig.nq) and np.all(np.isfinite(stop.x))
 
 
+class _Progress:
+    def __init__(self):
+        self.windows, self.iterations = [], []
+
+    def __call__(self, rep):
+        self.iterations.append(rep.iteration)
+
+    def window(self, rep):
+        self.windows.append(rep)
+
+
+def test_windows_in_worker_processes_match_the_truth_and_report_every_window(walk_300):
+    """Two worker processes, each solving a run of consecutive windows (the second run's first
+    window starts cold): every window reported once, with its place in the plan; the iteration
+    reports come back over the queue; the answer as close to the true walk as the windows one
+    after another (both scored against the truth, not against each other)."""
+    fig, q, cam, tracks, keys = walk_300
+    truth = fig.keypoints(q)
+    plan = window_plan(300, 100, 30)
+    errors = {}
+    for jobs in (None, 2):  # no pose prior: the keyframes decide the walk's poses (bench_prior_yield)
+        problem = make_problem(fig, tracks, cam, keys, calibrate="none", weights=pr.Weights(pose_prior=None))
+        progress = _Progress()
+        res = solve_windowed(problem, "auto", None, progress, window=100, overlap=30, n_jobs=jobs)
+        windows, iters = progress.windows, progress.iterations
+        assert sorted((w.index, w.first, w.last) for w in windows) == [(k + 1, a, e) for k, (a, e) in enumerate(plan)]
+        assert all(w.count == len(plan) for w in windows) and res.converged
+        assert len(iters) == res.iterations == sum(w.iterations for w in windows)
+        assert res.x.shape == (300, fig.nq) and np.all(np.isfinite(res.x))
+        np.testing.assert_allclose(np.linalg.norm(res.x[:, 3:7], axis=1), 1.0, atol=1e-9)
+        errors[jobs] = 1000 * np.linalg.norm(problem.keypoints(res.x) - truth, axis=-1).mean()
+    assert errors[2] < 15.0 and abs(errors[2] - errors[None]) < 1.0, errors
+
+
+def test_stopping_one_worker_stops_them_all(walk_300):
+    fig, _, cam, tracks, keys = walk_300
+    problem = make_problem(fig, tracks, cam, keys, calibrate="none")
+    seen = []
+
+    def stop_after_two(rep):
+        seen.append(rep)
+        return len(seen) >= 2
+
+    res = solve_windowed(problem, "auto", None, stop_after_two, window=100, overlap=30, n_jobs=2)
+    assert res.status == "stopped by callback" and res.x.shape == (300, fig.nq) and np.all(np.isfinite(res.x))
+    assert len(seen) < 20  # the workers stopped at the next iteration, not at the end of their windows
+    last = int(np.flatnonzero(np.any(res.x != res.x[-1], axis=1)).max()) + 1  # frames after it hold its pose
+    assert last < 300
+
+
+@pytest.mark.parametrize("bad", [0, -2, 1.5, True, "2"])
+def test_worker_count_is_checked(walk_300, bad):
+    fig, _, cam, tracks, keys = walk_300
+    problem = make_problem(fig, tracks, cam, keys, calibrate="none")
+    with pytest.raises(InputError) as exc:
+        solve_windowed(problem, "auto", window=100, n_jobs=bad)
+    assert exc.value.field == "n_jobs"
+
+
 def test_feet_need_the_batch_solve(walk_300):
     fig, _, cam, tracks, keys = walk_300
     with pytest.raises(InputError, match="window=0"):

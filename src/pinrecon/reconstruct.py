@@ -283,7 +283,7 @@ def reconstruct(
     generic human, ``floor="none"`` turns it off). ``calibrate``: ``"none"``, ``"lengths"``,
     ``"camera"`` or ``"lengths+camera"`` (default :func:`pinrecon.problem.default_calibrate`;
     ``lengths_from_tracks`` starts one camera's lengths where the tracks measure them).
-    ``window``: frames per window of a long clip (:mod:`pinrecon.windowed`; 0: one batch).
+    ``window``: frames per window of a long clip (:mod:`pinrecon.windowed`, solved on every core; 0: one batch).
     ``skip``: stages to switch off and ``progress(name)``, called as each starts
     (:data:`pinrecon.stages.STAGES`). ``lifter``: pinrecon's own lifter (``"auto"``, ``"none"`` or a
     weights file), joining with the broader prior. Parameters in full: ``docs/reconstruct.md``.
@@ -389,7 +389,7 @@ def _reconstruct_windowed(problem, inputs, mode, calibrate, auto, start, init, s
         mode = "camera" if auto is not None else "none"
         problem = make_problem(**inputs, calibrate=mode)
     res = solve_windowed(problem, start, options, callback, window=span, mirrors=_mirrors(problem, init),
-                         adapt_prior=adapt)
+                         adapt_prior=adapt, n_jobs=-1)
     result = _package(problem, res, auto, identify=False)
     switch = None if default is None or adapt else broader_prior(default, "auto", result.extras, share=limit)
     if switch is not None:
@@ -397,7 +397,7 @@ def _reconstruct_windowed(problem, inputs, mode, calibrate, auto, start, init, s
         if lift is not None:  # poses the default prior does not know: the lifter's cues join
             inputs = {**inputs, "tracks": lift(inputs["tracks"])}
         problem = make_problem(**{**inputs, "weights": weights}, calibrate=mode)
-        res = solve_windowed(problem, start, options, callback, window=span, mirrors=_mirrors(problem, init))
+        res = solve_windowed(problem, start, options, callback, window=span, mirrors=_mirrors(problem, init), n_jobs=-1)
         result = _package(problem, res, auto, identify=False, judge=default)
         result.extras.update(switch_extras(*switch))
     changed = f"windows of {span} frames" + (f", pose prior -> {switch[0]}" if switch else "")

@@ -26,8 +26,13 @@ by window, in order:
   repaired, outliers) run in every window, as after the batch solve; their reports are
   merged, frames shifted to the clip's.
 
-Only one window's problem and solver buffers exist at a time, so memory does not grow
-with the clip (the inputs and the output trajectory, a few hundred bytes a frame, do).
+Both cores: with ``n_jobs`` (:func:`pinrecon.reconstruct` asks for every core) the windows are
+split into as many runs of consecutive windows, each solved in a worker process (forked where
+the platform can fork; one after another elsewhere), the first window of each run starting
+cold; the runs are stitched as consecutive windows are. The callback's reports come back over
+a queue (its stop stops every worker). Each worker holds one window's problem and solver
+buffers at a time, so memory does not grow with the clip (the inputs and the output
+trajectory, a few hundred bytes a frame, do).
 On clips that fit in memory the windowed answer is within 1 mm (mean per-joint) of the
 batch one (``tests/test_windowed.py``, ``bench/bench_engine.py``).
 
@@ -40,8 +45,10 @@ and, when it has a ``window`` method, a :class:`WindowReport` after each window.
 from __future__ import annotations
 
 import math
+import multiprocessing
+import os
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -126,7 +133,8 @@ def window_plan(n_frames: int, window: int, overlap: int, unit: int = 1) -> list
 
 def solve_windowed(problem, start="auto", options: SolverOptions | None = None, callback=None, *,
                    window: int = DEFAULT_WINDOW, overlap: int | None = None, faults: bool = True,
-                   turns: bool = True, mirrors: bool = False, adapt_prior: bool = False) -> SolveResult:
+                   turns: bool = True, mirrors: bool = False, adapt_prior: bool = False,
+                   n_jobs: int | None = None) -> SolveResult:
     """Solve ``problem`` (a :class:`~pinrecon.problem.ReconstructionProblem` from
     :func:`~pinrecon.problem.make_problem`) window by window; see the module docstring.
 
@@ -140,7 +148,8 @@ def solve_windowed(problem, start="auto", options: SolverOptions | None = None, 
     adapt_prior`, as the batch solve's stage ``yield`` does at a dense-keyframe start). Returns a
     :class:`~pinrecon.solver.SolveResult` for the whole clip: the stitched trajectory,
     the whole problem's cost there, the iterations of all windows, and the globals
-    solved on the leading stretch.
+    solved on the leading stretch. ``n_jobs``: worker processes for the windows (scikit-learn's
+    convention: ``None`` or 1 here, one after another; -1 every CPU; at most one per window).
     """
     t0 = time.perf_counter()
     views = problem.views
@@ -173,44 +182,29 @@ def solve_windowed(problem, start="auto", options: SolverOptions | None = None, 
     user_window = getattr(callback, "window", None)
     done_until = -1  # the last frame written to X
     stopped = False
-    for k, (a, e) in enumerate(plan):
-        c_w = time.process_time()
-        wp = _window_problem(problem, a, e, free_globals=False, g_held=g_solved)
-        if isinstance(start, str):
-            q0 = initial_trajectory(wp, start)
-        else:
-            q0 = np.array(np.asarray(start, float)[a : e + 1])
-        if held_prior is not None:
-            wp = with_pose_prior(wp, held_prior)
-        if done_until >= a:  # warm: the frames shared with the previous window
-            q0[: done_until - a + 1] = X[a : done_until + 1]
-        res = solve(wp, q0, options, callback, active=wp.active)
-        if turns:
-            res = turn_stage(wp, res, options, callback)
-            for t in getattr(wp.reports.pop("turns", None), "turns", []):  # a window tried twice (overlap): once
-                tried.setdefault((t.first + a, t.last + a), replace(t, first=t.first + a, last=t.last + a))
-        if mirrors:
-            res = mirror_stage(wp, res, options, callback)
-            for m in getattr(wp.reports.pop("mirrors", None), "tried", []):
-                mirrored.setdefault((m.chain, m.mode, m.first + a, m.last + a), replace(m, first=m.first + a, last=m.last + a))
-        if faults:
-            res = fault_stage(wp, res, options, callback)
-            for v, name in enumerate(["faults"] + [f"faults_{n}" for n in wp.camera_names[1:]]):
-                if name in wp.reports:
-                    fault_reports[v].append((a // views[v].factor, wp.reports[name]))
-        if k == 0:
-            for key, rep in wp.reports.items():  # e.g. the hypotheses start's report
-                if not key.startswith("faults"):
-                    problem.reports.setdefault(key, rep)
-        _stitch(problem.figure, X, res.x, a, done_until)
+    setup = _Setup(problem, start, options, g_solved, held_prior, turns, mirrors, faults)
+    jobs = _jobs(n_jobs, len(plan))
+    if jobs > 1:
+        solved = _solve_groups(setup, plan, jobs, callback, user_window)
+    else:
+        solved = _solve_run(setup, plan, list(range(len(plan))), callback,
+                            None if user_window is None else lambda out: user_window(_window_report(out, len(plan))))
+    for out in solved:
+        a, e = out.first, out.last
+        for t in out.turns:  # a window tried twice (overlap): once
+            tried.setdefault((t.first + a, t.last + a), replace(t, first=t.first + a, last=t.last + a))
+        for m in out.mirrors:
+            mirrored.setdefault((m.chain, m.mode, m.first + a, m.last + a), replace(m, first=m.first + a, last=m.last + a))
+        for v, rep in out.faults:
+            fault_reports[v].append((a // views[v].factor, rep))
+        for key, rep in out.reports.items():  # the first window's (e.g. the hypotheses start's report)
+            problem.reports.setdefault(key, rep)
+        _stitch(problem.figure, X, out.x, a, done_until)
         done_until = e
-        iterations += res.iterations
-        statuses.append(res.status)
-        reports.extend(res.report)
-        rep = WindowReport(k + 1, len(plan), a, e, res.iterations, res.cost, res.status, time.process_time() - c_w)
-        if user_window is not None:
-            user_window(rep)
-        if res.status == "stopped by callback":
+        iterations += out.iterations
+        statuses.append(out.status)
+        reports.extend(out.report)
+        if out.status == "stopped by callback":
             stopped = True
             X[e + 1 :] = X[e]  # not solved: the last solved pose held
             break
@@ -234,6 +228,158 @@ def solve_windowed(problem, start="auto", options: SolverOptions | None = None, 
     out.identifiability = identified
     return out
 
+
+@dataclass
+class _Setup:
+    """What every window's solve shares (sent once to each worker process)."""
+
+    problem: object
+    start: object
+    options: object
+    g_solved: object
+    held_prior: object
+    turns: bool
+    mirrors: bool
+    faults: bool
+
+
+@dataclass
+class _Solved:
+    """One window's solve: its frames, solution and the stages' reports (frames the window's)."""
+
+    index: int
+    first: int
+    last: int
+    x: np.ndarray
+    iterations: int
+    cost: float
+    status: str
+    report: list
+    seconds: float
+    turns: list = field(default_factory=list)
+    mirrors: list = field(default_factory=list)
+    faults: list = field(default_factory=list)  # (view, FaultReport)
+    reports: dict = field(default_factory=dict)  # the first window's problem reports (e.g. the start's)
+
+
+def _solve_window(s: _Setup, k: int, a: int, e: int, warm, callback) -> _Solved:
+    """Window ``k``, frames ``a .. e``: its start (``warm``: the solution of the frames it shares
+    with the previous window, or None), the solve and the windows' stages."""
+    c_w = time.process_time()
+    problem = s.problem
+    wp = _window_problem(problem, a, e, free_globals=False, g_held=s.g_solved)
+    if isinstance(s.start, str):
+        q0 = initial_trajectory(wp, s.start)
+    else:
+        q0 = np.array(np.asarray(s.start, float)[a : e + 1])
+    if s.held_prior is not None:
+        wp = with_pose_prior(wp, s.held_prior)
+    if warm is not None:
+        q0[: len(warm)] = warm
+    res = solve(wp, q0, s.options, callback, active=wp.active)
+    out = _Solved(k, a, e, res.x, res.iterations, res.cost, res.status, res.report, 0.0)
+    if s.turns:
+        res = turn_stage(wp, res, s.options, callback)
+        out.turns = list(getattr(wp.reports.pop("turns", None), "turns", []))
+    if s.mirrors:
+        res = mirror_stage(wp, res, s.options, callback)
+        out.mirrors = list(getattr(wp.reports.pop("mirrors", None), "tried", []))
+    if s.faults:
+        res = fault_stage(wp, res, s.options, callback)
+        for v, name in enumerate(["faults"] + [f"faults_{n}" for n in wp.camera_names[1:]]):
+            if name in wp.reports:
+                out.faults.append((v, wp.reports[name]))
+    if k == 0:
+        out.reports = {key: rep for key, rep in wp.reports.items() if not key.startswith("faults")}
+    out.x, out.iterations, out.cost, out.status, out.report = res.x, res.iterations, res.cost, res.status, res.report
+    out.seconds = time.process_time() - c_w
+    return out
+
+
+def _window_report(out: _Solved, count: int) -> WindowReport:
+    return WindowReport(out.index + 1, count, out.first, out.last, out.iterations, out.cost, out.status, out.seconds)
+
+
+def _jobs(n_jobs, n_windows: int) -> int:
+    """Worker processes for ``n_windows`` windows: ``n_jobs`` (scikit-learn's convention: None
+    or 1 one after another, -1 every CPU this process may use), at most one per window; one
+    where processes cannot be forked (a process started afresh imports the caller's script
+    again, which a script without a ``__main__`` guard does not survive)."""
+    if n_jobs is None:
+        return 1
+    if isinstance(n_jobs, bool) or not isinstance(n_jobs, (int, np.integer)) or n_jobs == 0 or n_jobs < -1:
+        raise InputError(f"must be a whole number of processes (-1: one per CPU); got {n_jobs!r}", field="n_jobs")
+    if "fork" not in multiprocessing.get_all_start_methods():  # workers started afresh would run the caller's script
+        return 1
+    cpus = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    return max(1, min(n_windows, cpus if n_jobs == -1 else int(n_jobs)))
+
+
+def _solve_groups(s: _Setup, plan, jobs: int, callback, user_window) -> list[_Solved]:
+    """The windows in ``jobs`` runs of consecutive windows, each run in a process of its own
+    (the first window of a run starts cold); the callback's reports come over a queue, and
+    the callback stopping one solve stops them all. Returns the windows in order, up to the
+    first one stopped."""
+    import queue as queue_module
+    from concurrent.futures import ProcessPoolExecutor
+
+    runs = [r.tolist() for r in np.array_split(np.arange(len(plan)), jobs)]
+    ctx = multiprocessing.get_context("fork")  # the caller's script is not run again (see _jobs)
+    with ctx.Manager() as manager, ProcessPoolExecutor(max_workers=jobs, mp_context=ctx) as pool:
+        said, halt = manager.Queue(), manager.Event()
+        futures = [pool.submit(_worker_run, s, plan, run, callback is not None, said, halt) for run in runs]
+        while True:
+            try:
+                kind, item = said.get(timeout=0.2)
+            except queue_module.Empty:
+                if all(f.done() for f in futures):
+                    break
+                continue
+            if kind == "iteration" and callback(item):
+                halt.set()
+            elif kind == "window" and user_window is not None:
+                user_window(item)
+        done = sorted((out for f in futures for out in f.result()), key=lambda o: o.index)
+    solved = []
+    for k, out in enumerate(done):
+        if out.index != k:  # a run stopped before this window: the windows after the gap are not kept
+            break
+        solved.append(out)
+        if out.status == "stopped by callback":
+            break
+    return solved
+
+
+def _solve_run(s: _Setup, plan, run, callback, on_window) -> list[_Solved]:
+    """Windows ``run`` (consecutive indices into ``plan``) one after another, each starting warm
+    on the frames it shares with the one before (the run's first cold); ``on_window(solved)``
+    after each. Stops after a window the callback stopped."""
+    figure = s.problem.figure
+    X = np.empty((s.problem.n_frames, figure.nq))
+    solved, done_until = [], -1
+    for k in run:
+        a, e = plan[k]
+        out = _solve_window(s, k, a, e, X[a : done_until + 1] if done_until >= a else None, callback)
+        _stitch(figure, X, out.x, a, done_until)
+        done_until = e
+        solved.append(out)
+        if on_window is not None:
+            on_window(out)
+        if out.status == "stopped by callback":
+            break
+    return solved
+
+
+def _worker_run(s: _Setup, plan, run, forward: bool, said, halt) -> list[_Solved]:
+    """:func:`_solve_run` in a worker process: the iteration reports (``forward``) and the
+    window reports go to the queue ``said``; the event ``halt`` stops the solve."""
+
+    def callback(report):
+        if forward:
+            said.put(("iteration", report))
+        return halt.is_set()
+
+    return _solve_run(s, plan, run, callback, lambda out: said.put(("window", _window_report(out, len(plan)))))
 
 def _window_problem(problem, a: int, e: int, *, free_globals: bool, g_held):
     """The problem of reconstruction frames ``a .. e`` (inclusive): every camera's tracks,
