@@ -5,6 +5,8 @@ entry points, and clear errors."""
 from __future__ import annotations
 
 import itertools
+import multiprocessing
+import os
 import tracemalloc
 
 import numpy as np
@@ -18,6 +20,7 @@ from pinrecon.synthetic import human_walk, point_keyframes, project_tracks, side
 from pinrecon.windowed import (
     AUTO_WINDOW_FRAMES,
     DEFAULT_WINDOW,
+    _jobs,
     solve_windowed,
     window_plan,
     windowed_length,
@@ -177,6 +180,23 @@ def test_stopping_one_worker_stops_them_all(walk_300):
     assert len(seen) < 20  # the workers stopped at the next iteration, not at the end of their windows
     last = int(np.flatnonzero(np.any(res.x != res.x[-1], axis=1)).max()) + 1  # frames after it hold its pose
     assert last < 300
+
+
+def _jobs_in_a_worker(said):
+    said.put(_jobs(-1, 4))
+
+
+def test_a_worker_process_solves_its_windows_itself():
+    """Every core in the main process; one in a process that is itself a worker (pinrecon
+    batch's, Dask's), whose pool already uses the cores."""
+    assert _jobs(-1, 4) == min(4, len(os.sched_getaffinity(0))) and _jobs(-1, 1) == 1 and _jobs(None, 4) == 1
+    ctx = multiprocessing.get_context("fork")
+    said = ctx.Queue()
+    worker = ctx.Process(target=_jobs_in_a_worker, args=(said,))
+    worker.start()
+    got = said.get(timeout=60)
+    worker.join()
+    assert got == 1
 
 
 @pytest.mark.parametrize("bad", [0, -2, 1.5, True, "2"])

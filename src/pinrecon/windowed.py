@@ -304,12 +304,15 @@ def _jobs(n_jobs, n_windows: int) -> int:
     """Worker processes for ``n_windows`` windows: ``n_jobs`` (scikit-learn's convention: None
     or 1 one after another, -1 every CPU this process may use), at most one per window; one
     where processes cannot be forked (a process started afresh imports the caller's script
-    again, which a script without a ``__main__`` guard does not survive)."""
+    again, which a script without a ``__main__`` guard does not survive), and in a process that
+    is itself a worker (``pinrecon batch``'s, Dask's: their pool already uses the cores)."""
     if n_jobs is None:
         return 1
     if isinstance(n_jobs, bool) or not isinstance(n_jobs, (int, np.integer)) or n_jobs == 0 or n_jobs < -1:
         raise InputError(f"must be a whole number of processes (-1: one per CPU); got {n_jobs!r}", field="n_jobs")
     if "fork" not in multiprocessing.get_all_start_methods():  # workers started afresh would run the caller's script
+        return 1
+    if multiprocessing.parent_process() is not None:  # a worker itself (pinrecon batch, Dask, stability): its pool's
         return 1
     cpus = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
     return max(1, min(n_windows, cpus if n_jobs == -1 else int(n_jobs)))
