@@ -91,7 +91,7 @@ def add_reconstruct_options(r, *, inputs=None, camera_required: bool = True, fig
                    help="switch stages off by name: labels, prior, yield, turns, mirrors, faults, focal, feet (the start and the "
                    "solve always run; the summary lists every stage with its time and what it changed)")
     r.add_argument("--window", type=int, help="solve in overlapping windows of this many frames, in bounded memory "
-                   "(default: windows of 2000 frames past 10000 frames; 0: one batch solve)")
+                   "and on every core (default: windows of 2000 frames past 10000 frames; 0: one batch solve)")
     r.add_argument("--floor", help="feet on the ground: 'auto' (estimated under the feet; the default for "
                    "--figure human with a tracked ankle), 'none' (off), 'y=0' / 'z=0', or "
                    "'nx,ny,nz,d' (the plane n.p = d, n up); adds the contact rows (see --contact)")
