@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 import pinrecon as pr
+from pinrecon import windowed
 from pinrecon.errors import InputError
 from pinrecon.problem import make_problem
 from pinrecon.solver import SolverOptions
@@ -197,6 +198,20 @@ def test_a_worker_process_solves_its_windows_itself():
     got = said.get(timeout=60)
     worker.join()
     assert got == 1
+
+
+def _dies(*args):
+    os._exit(3)  # a worker killed (the system out of memory, say)
+
+
+def test_a_dead_worker_is_said_and_the_windows_solved_one_after_another(walk_300, monkeypatch):
+    fig, q, cam, tracks, keys = walk_300
+    problem = make_problem(fig, tracks, cam, keys, calibrate="none", weights=pr.Weights(pose_prior=None))
+    monkeypatch.setattr(windowed, "_worker_run", _dies)
+    with pytest.warns(RuntimeWarning, match="worker process solving the windows died"):
+        res = solve_windowed(problem, "auto", None, window=100, overlap=30, n_jobs=2)
+    assert res.converged and res.x.shape == (300, fig.nq)
+    assert 1000 * np.linalg.norm(problem.keypoints(res.x) - fig.keypoints(q), axis=-1).mean() < 15.0
 
 
 @pytest.mark.parametrize("bad", [0, -2, 1.5, True, "2"])

@@ -49,6 +49,8 @@ import math
 import multiprocessing
 import os
 import time
+import warnings
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -186,9 +188,14 @@ def solve_windowed(problem, start="auto", options: SolverOptions | None = None, 
     stopped = False
     setup = _Setup(problem, start, options, g_solved, held_prior, turns, mirrors, faults, lead)
     jobs = _jobs(n_jobs, len(plan))
+    solved = None
     if jobs > 1:
-        solved = _solve_groups(setup, plan, jobs, callback, user_window)
-    else:
+        try:
+            solved = _solve_groups(setup, plan, jobs, callback, user_window)
+        except BrokenProcessPool:
+            warnings.warn("a worker process solving the windows died (out of memory?): the windows are solved again, "
+                          "one after another", RuntimeWarning, stacklevel=2)
+    if solved is None:
         solved = _solve_run(setup, plan, list(range(len(plan))), callback,
                             None if user_window is None else lambda out: user_window(_window_report(out, len(plan))))
     for out in solved:
