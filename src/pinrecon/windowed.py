@@ -11,8 +11,7 @@ by window, in order:
   fall in it, the same weights and calibration mode);
 * each window starts from the same start as the batch solve, computed on the window's
   data (or from a given start trajectory), except for the frames it shares with the
-  previous window, which start warm from that window's solution; a window inside the
-  leading stretch whose solve gave the globals (below) starts from that solution instead;
+  previous window, which start warm from that window's solution;
 * its solution is stitched on: inside the overlap the two solutions are blended
   geodesically (``pin.interpolate``), the weight of the new one going from 0 to 1 over
   the middle half of the overlap, away from both windows' ends where a window knows least;
@@ -166,7 +165,7 @@ def solve_windowed(problem, start="auto", options: SolverOptions | None = None, 
     unit = math.lcm(*[int(v.factor) for v in views])
     plan = window_plan(T, max(window, 2 * unit + 1), overlap, unit)
     X = np.empty((T, problem.figure.nq))
-    g_solved = identified = lead = None
+    g_solved = identified = None
     held_prior = None
     if problem.g0 is not None or adapt_prior:  # the leading stretch: its start, then ...
         stretch = (min(T - 1, max(plan[0][1], CALIBRATION_FRAMES - 1)) // unit) * unit
@@ -178,7 +177,6 @@ def solve_windowed(problem, start="auto", options: SolverOptions | None = None, 
     if problem.g0 is not None:  # ... the globals solved on it, then held in every window
         res = solve(wp, q0, options, callback, active=wp.active, g0=wp.g0)
         g_solved = res.g if res.g is not None else wp.g0
-        lead = res.x if isinstance(start, str) else None  # the start of the windows inside the stretch
         identified = proportions_identifiability(wp, res.x, g_solved)  # what this stretch's data fix
         for key, rep in wp.reports.items():  # e.g. the hypotheses start's report
             problem.reports.setdefault(key, rep)
@@ -186,7 +184,7 @@ def solve_windowed(problem, start="auto", options: SolverOptions | None = None, 
     user_window = getattr(callback, "window", None)
     done_until = -1  # the last frame written to X
     stopped = False
-    setup = _Setup(problem, start, options, g_solved, held_prior, turns, mirrors, faults, lead)
+    setup = _Setup(problem, start, options, g_solved, held_prior, turns, mirrors, faults)
     jobs = _jobs(n_jobs, len(plan))
     solved = None
     if jobs > 1:
@@ -250,7 +248,6 @@ class _Setup:
     turns: bool
     mirrors: bool
     faults: bool
-    lead: np.ndarray | None = None  # the leading stretch's solution (frames 0 ..), the start of windows inside it
 
 
 @dataclass
@@ -278,9 +275,7 @@ def _solve_window(s: _Setup, k: int, a: int, e: int, warm, callback) -> _Solved:
     c_w = time.process_time()
     problem = s.problem
     wp = _window_problem(problem, a, e, free_globals=False, g_held=s.g_solved)
-    if s.lead is not None and e < len(s.lead):  # inside the leading stretch: its solution (the globals' own)
-        q0 = np.array(s.lead[a : e + 1])
-    elif isinstance(s.start, str):
+    if isinstance(s.start, str):
         q0 = initial_trajectory(wp, s.start)
     else:
         q0 = np.array(np.asarray(s.start, float)[a : e + 1])
