@@ -33,7 +33,6 @@ import hashlib
 import html
 import io
 import json
-import os
 import sys
 import time
 import traceback
@@ -472,7 +471,9 @@ def run_batch(clips, options, out_dir, *, jobs: int | None = None, scheduler: st
         else:
             todo.append(clip)
     bar = _Bar(len(clips), len(clips) - len(todo), quiet)
-    jobs = max(1, min(jobs or _cores(), len(todo) or 1))
+    from .windowed import usable_cpus  # the solver's modules load when there is work
+
+    jobs = max(1, min(jobs or usable_cpus(), len(todo) or 1))
     try:
         for row in _execute(todo, options, out, jobs, scheduler, pictures):
             rows[row["clip"]] = row
@@ -481,13 +482,6 @@ def run_batch(clips, options, out_dir, *, jobs: int | None = None, scheduler: st
         report = BatchReport([rows[c.name] for c in clips if c.name in rows], out)
         write_summary(report.rows, out)
     return report
-
-
-def _cores() -> int:
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # not on Linux
-        return os.cpu_count() or 1
 
 
 def _execute(todo, options, out: Path, jobs: int, scheduler: str | None, pictures: bool):

@@ -37,6 +37,7 @@ from .metrics import procrustes
 from .reconstruct import reconstruct
 from .result import Result, stability_lines
 from .tracks import Tracks
+from .windowed import n_processes
 
 __all__ = ["Stability", "drop_detections", "stability"]
 
@@ -158,12 +159,7 @@ def _solve_copies(jobs: int, common, tasks) -> list[np.ndarray]:
 
 def _jobs(n_jobs, runs: int) -> int:
     """The number of processes ``n_jobs`` asks for (scikit-learn's convention), at most ``runs``."""
-    if n_jobs is None:
-        return 1
-    if isinstance(n_jobs, bool) or not isinstance(n_jobs, int) or n_jobs == 0 or n_jobs < -1:
-        raise InputError(f"must be a whole number of processes (-1: one per CPU); got {n_jobs!r}", field="n_jobs")
-    cpus = os.cpu_count() or 1
-    return max(1, min(runs, cpus if n_jobs == -1 else n_jobs))
+    return n_processes(n_jobs, runs, os.cpu_count() or 1)
 
 
 def _number(x) -> float:

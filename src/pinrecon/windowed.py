@@ -47,10 +47,12 @@ from __future__ import annotations
 import math
 import multiprocessing
 import os
+import queue as queue_module
 import time
 import warnings
+from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -263,10 +265,10 @@ class _Solved:
     status: str
     report: list
     seconds: float
-    turns: list = field(default_factory=list)
-    mirrors: list = field(default_factory=list)
-    faults: list = field(default_factory=list)  # (view, FaultReport)
-    reports: dict = field(default_factory=dict)  # the first window's problem reports (e.g. the start's)
+    turns: list
+    mirrors: list
+    faults: list  # (view, FaultReport)
+    reports: dict  # the first window's problem reports (e.g. the start's)
 
 
 def _solve_window(s: _Setup, k: int, a: int, e: int, warm, callback) -> _Solved:
@@ -284,45 +286,56 @@ def _solve_window(s: _Setup, k: int, a: int, e: int, warm, callback) -> _Solved:
     if warm is not None:
         q0[: len(warm)] = warm
     res = solve(wp, q0, s.options, callback, active=wp.active)
-    out = _Solved(k, a, e, res.x, res.iterations, res.cost, res.status, res.report, 0.0)
+    turns, mirrors, faults = [], [], []
     if s.turns:
         res = turn_stage(wp, res, s.options, callback)
-        out.turns = list(getattr(wp.reports.pop("turns", None), "turns", []))
+        turns = list(getattr(wp.reports.pop("turns", None), "turns", []))
     if s.mirrors:
         res = mirror_stage(wp, res, s.options, callback)
-        out.mirrors = list(getattr(wp.reports.pop("mirrors", None), "tried", []))
+        mirrors = list(getattr(wp.reports.pop("mirrors", None), "tried", []))
     if s.faults:
         res = fault_stage(wp, res, s.options, callback)
-        for v, name in enumerate(["faults"] + [f"faults_{n}" for n in wp.camera_names[1:]]):
-            if name in wp.reports:
-                out.faults.append((v, wp.reports[name]))
-    if k == 0:
-        out.reports = {key: rep for key, rep in wp.reports.items() if not key.startswith("faults")}
-    out.x, out.iterations, out.cost, out.status, out.report = res.x, res.iterations, res.cost, res.status, res.report
-    out.seconds = time.process_time() - c_w
-    return out
+        faults = [(v, wp.reports[name]) for v, name in enumerate(["faults"] + [f"faults_{n}" for n in wp.camera_names[1:]])
+                  if name in wp.reports]
+    first = {key: rep for key, rep in wp.reports.items() if not key.startswith("faults")} if k == 0 else {}
+    return _Solved(k, a, e, res.x, res.iterations, res.cost, res.status, res.report, time.process_time() - c_w,
+                   turns, mirrors, faults, first)
 
 
 def _window_report(out: _Solved, count: int) -> WindowReport:
     return WindowReport(out.index + 1, count, out.first, out.last, out.iterations, out.cost, out.status, out.seconds)
 
 
-def _jobs(n_jobs, n_windows: int) -> int:
-    """Worker processes for ``n_windows`` windows: ``n_jobs`` (scikit-learn's convention: None
-    or 1 one after another, -1 every CPU this process may use), at most one per window; one
-    where processes cannot be forked (a process started afresh imports the caller's script
-    again, which a script without a ``__main__`` guard does not survive), and in a process that
-    is itself a worker (``pinrecon batch``'s, Dask's: their pool already uses the cores)."""
+def usable_cpus() -> int:
+    """The CPUs this process may run on (its affinity where the platform has one)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
+def n_processes(n_jobs, at_most: int, cpus: int) -> int:
+    """The processes ``n_jobs`` asks for, scikit-learn's convention (``None`` or 1: this one,
+    -1: one per CPU of ``cpus``), at most ``at_most``; anything else refused (field ``n_jobs``)."""
     if n_jobs is None:
         return 1
-    if isinstance(n_jobs, bool) or not isinstance(n_jobs, (int, np.integer)) or n_jobs == 0 or n_jobs < -1:
+    if isinstance(n_jobs, bool) or not isinstance(n_jobs, int) or n_jobs == 0 or n_jobs < -1:
         raise InputError(f"must be a whole number of processes (-1: one per CPU); got {n_jobs!r}", field="n_jobs")
+    return max(1, min(at_most, cpus if n_jobs == -1 else n_jobs))
+
+
+def _jobs(n_jobs, n_windows: int) -> int:
+    """Worker processes for ``n_windows`` windows (:func:`n_processes`, the CPUs this process
+    may use); one where processes cannot be forked (a process started afresh imports the
+    caller's script again, which a script without a ``__main__`` guard does not survive), and in
+    a process that is itself a worker (``pinrecon batch``'s, Dask's: their pool already uses the
+    cores)."""
+    jobs = n_processes(n_jobs, n_windows, usable_cpus())
     if "fork" not in multiprocessing.get_all_start_methods():  # workers started afresh would run the caller's script
         return 1
     if multiprocessing.parent_process() is not None:  # a worker itself (pinrecon batch, Dask, stability): its pool's
         return 1
-    cpus = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
-    return max(1, min(n_windows, cpus if n_jobs == -1 else int(n_jobs)))
+    return jobs
 
 
 def _solve_groups(s: _Setup, plan, jobs: int, callback, user_window) -> list[_Solved]:
@@ -330,9 +343,6 @@ def _solve_groups(s: _Setup, plan, jobs: int, callback, user_window) -> list[_So
     (the first window of a run starts cold); the callback's reports come over a queue, and
     the callback stopping one solve stops them all. Returns the windows in order, up to the
     first one stopped."""
-    import queue as queue_module
-    from concurrent.futures import ProcessPoolExecutor
-
     runs = [r.tolist() for r in np.array_split(np.arange(len(plan)), jobs)]
     ctx = multiprocessing.get_context("fork")  # the caller's script is not run again (see _jobs)
     with ctx.Manager() as manager, ProcessPoolExecutor(max_workers=jobs, mp_context=ctx) as pool:
