@@ -88,6 +88,40 @@ def data_dir(prefix: str) -> Path:
     return _registered("folder", prefix, module=True)
 
 
+def openpose_body25_folder() -> Path:
+    """Three OpenPose BODY_25 frames ``walk_00000000000t_keypoints.json``, written by formula
+    into a folder of this test process (tests/data/SOURCES.md): person 0 of frame t has point k
+    at ``(100 + 10 k + t, 200 + 5 k)`` with confidence 0.9, except point 3 of frame 0, written
+    ``0, 0, 0`` (not detected); frame 1 has no people; frame 2 has a second person shifted by
+    +1000 px in x."""
+    global _OPENPOSE
+    if _OPENPOSE is None:
+        import atexit
+        import json
+        import shutil
+        import tempfile
+
+        folder = Path(tempfile.mkdtemp(prefix="pinrecon-openpose-")) / "openpose_body25"
+        folder.mkdir()
+        atexit.register(shutil.rmtree, folder.parent, True)
+
+        def person(t, shift=0.0, missing=()):
+            flat = []
+            for k in range(25):
+                flat += [0.0, 0.0, 0.0] if k in missing else [100.0 + 10 * k + t + shift, 200.0 + 5.0 * k, 0.9]
+            return {"person_id": [-1], "pose_keypoints_2d": flat, "face_keypoints_2d": [],
+                    "hand_left_keypoints_2d": [], "hand_right_keypoints_2d": []}
+
+        frames = [[person(0, missing=(3,))], [], [person(2), person(2, shift=1000.0)]]
+        for t, people in enumerate(frames):
+            (folder / f"walk_{t:012d}_keypoints.json").write_text(json.dumps({"version": 1.3, "people": people}))
+        _OPENPOSE = folder
+    return _OPENPOSE
+
+
+_OPENPOSE: Path | None = None
+
+
 WALK = "mocap/cmu-mb_02_01.bvh"  # registered names (pinrecon.datasets) of the clips tests use
 MIXED = "project-test-data/cmu-max_131_03.bvh"
 ASF = "project-test-data/cmu-asf_01.asf"

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import openpose_body25_folder
 from scipy.spatial.transform import Rotation
 
 import pinrecon as pr
@@ -221,7 +222,7 @@ def test_plot_reads_an_openpose_folder_with_fps_and_leaves_nothing_when_it_fails
     q = smooth_motion(fig, 3, 30.0, seed=2)
     cam = pr.Orthographic.from_view([0.0, 0.0, -1.0], scale=300.0, center=(500.0, 500.0))
     Result.from_motion(fig, q, 30.0, camera=cam).save(tmp_path / "r.npz")
-    folder = "tests/data/openpose_body25"
+    folder = str(openpose_body25_folder())
     out = tmp_path / "pics"
     # without --fps: one clear error, no picture written
     assert main(["plot", str(tmp_path / "r.npz"), "--out", str(out), "--tracks", folder, "--no-animation"]) == 2

@@ -11,7 +11,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from conftest import DATA, REPO
+from conftest import DATA, REPO, openpose_body25_folder
 
 from pinrecon import (
     Figure,
@@ -29,7 +29,7 @@ from pinrecon.io.openpose import BODY_25, load_openpose
 from pinrecon.io.results import REQUIRED_KEYS
 from pinrecon.result import Result
 
-OPENPOSE = DATA / "openpose_body25"
+OPENPOSE = openpose_body25_folder()  # written by formula (tests/data/SOURCES.md)
 COCO_DATASET = DATA / "coco_dataset.json"
 COCO_RESULTS = DATA / "coco_results.json"
 
