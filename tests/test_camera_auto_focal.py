@@ -19,7 +19,12 @@ import numpy as np
 import pytest
 
 import pinrecon as pr
-from pinrecon.starts.camera_auto import AutoCamera, FocalLengthWarning, stretch_depth, profile_interval
+from pinrecon.starts.camera_auto import (
+    AutoCamera,
+    FocalLengthWarning,
+    profile_interval,
+    stretch_depth,
+)
 from pinrecon.synthetic import human_walk, perspective_side_camera, project_tracks
 
 F_TRUE, SIZE = 1100.0, (1280.0, 720.0)
@@ -55,7 +60,7 @@ def test_flat_skewed_or_jumping_profiles_rule_nothing_out():
 
 def teststretch_depth_keeps_the_image_of_the_root():
     cam = pr.Perspective.look_at([3.0, 1.4, -5.0], [0.2, 0.9, 0.3], f_px=F_TRUE, center=(640.0, 360.0))
-    fig, Q = human_walk(10, 30.0)
+    _fig, Q = human_walk(10, 30.0)
     Qs = stretch_depth(Q, cam, 1.3)
     K = np.array(cam.K, float)
     K[:2, :2] *= 1.3  # the focal block only: the principal point stays
@@ -90,7 +95,7 @@ def test_focal_from_a_start_30_percent_off_is_found_or_said_to_be_unknown(short_
     rep = res.calibration["camera_auto"]["focal"]
     fitted = res.calibration["cameras"]["camera1"]["fitted"]
     assert rep["focal_px"] == pytest.approx(fitted) and rep["start_px"] == pytest.approx(k * F_TRUE)
-    cost_at = dict((round(f, 6), c) for f, c in rep["profile"])
+    cost_at = {round(f, 6): c for f, c in rep["profile"]}
     assert min(cost_at.values()) >= cost_at[round(fitted, 6)] - 0.5  # settled at the profile's bottom
     warned = [w for w in caught if issubclass(w.category, FocalLengthWarning)]
     if abs(fitted / F_TRUE - 1.0) <= 0.10:
@@ -98,6 +103,49 @@ def test_focal_from_a_start_30_percent_off_is_found_or_said_to_be_unknown(short_
     assert not rep["determined"] and warned and "NOT determined" in str(warned[0].message)
     lo, hi = rep["interval_px"]
     assert lo <= F_TRUE <= hi
+
+
+def test_the_last_move_may_report_from_the_profile_already_solved(short_walk, monkeypatch):
+    """``settle_focal(final_profile=False)`` (the cue path's focal stage): the same move, and a
+    report made from the first profile's points and the moved solve instead of six more
+    solves. Ground truth: the same call with the profile solved again (the moved solutions
+    equal), and the points the first profile printed."""
+    from pinrecon import solver, stages
+    from pinrecon.starts.camera_auto import settle_focal
+
+    seen = {}
+
+    def observe(problem, res, auto, **kw):
+        seen.update(problem=problem, res=res, auto=auto)
+        return settle_focal(problem, res, auto, **kw)
+
+    monkeypatch.setattr(stages, "settle_focal", observe)
+    fov = float(np.degrees(2.0 * np.arctan(SIZE[0] / 2.0 / (1.3 * F_TRUE))))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        pr.reconstruct(pr.Figure.human(), short_walk, AutoCamera(SIZE, fov_deg=fov), skip=["feet"],
+                       options=pr.SolverOptions(max_iterations=4))  # stopped part-way down the valley
+    problem, res0, auto = seen["problem"], seen["res"], seen["auto"]
+    calls, real = [], solver.solve
+    monkeypatch.setattr(solver, "solve", lambda *a, **k: calls.append(1) or real(*a, **k))
+    out = {}
+    for final in (True, False):
+        calls.clear()
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            first = settle_focal(problem, res0, auto, rounds=0)[1]["focal"]
+            n_first = len(calls)
+            res, a = settle_focal(problem, res0, auto, rounds=1, final_profile=final)
+        out[final] = res, a["focal"], len(calls) - n_first
+    assert n_first == 6
+    (res_t, rep_t, n_t), (res_f, rep_f, n_f) = out[True], out[False]
+    assert res_f is not res0  # it moved
+    np.testing.assert_array_equal(res_f.x, res_t.x)
+    assert (n_t, n_f) == (6 + 1 + 6, 6 + 1)
+    assert rep_f["focal_px"] == pytest.approx(rep_t["focal_px"])
+    want = sorted([(rep_t["focal_px"], float(res_t.cost)), *map(tuple, first["profile"])])
+    np.testing.assert_allclose(sorted(map(tuple, rep_f["profile"])), want, rtol=1e-9)
+    assert len(rep_t["profile"]) == 7 and len(rep_f["profile"]) == 8
 
 
 # ----------------------------------------------------------------------------- keyframes place the camera

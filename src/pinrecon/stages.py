@@ -72,9 +72,10 @@ from .unfamiliar import BROADER_PRIOR, broader_prior, unfamiliar_poses, unfamili
 #: the focal stage's solves with lifted cues: at most this many iterations each (bench_stages:
 #: the same PA-MPJPE and flips on the five clips, the stage 30 % shorter on Pose2Sim's trial)
 FOCAL_ITERATIONS_LIFTED = 10
-#: with lifted cues, the focal stage moves down its valley once (then profiles it again for the
-#: report): the cues leave the profile no valley on any bench_stages clip, and further moves
-#: changed no PA-MPJPE or flip on its five clips (bench_video's four: the mean the same to 0.1 mm)
+#: with lifted cues, the focal stage moves down its valley once, and reports from the profile
+#: already solved (not profiled again): the cues leave the profile no valley on any bench_stages
+#: clip, and further moves changed no PA-MPJPE or flip on its five clips (bench_video's four: the
+#: mean the same to 0.1 mm)
 FOCAL_ROUNDS_LIFTED = 1
 #: with lifted cues, where the focal length's cost profile is no valley, the focal stage moves it
 #: only within these multiples of the image's diagonal (fields of view of about 36-118 degrees):
@@ -287,7 +288,7 @@ def _focal(run: Run) -> str | None:
     options, rounds = run.options, {}
     if _cued(run):  # the lifted cues hold the poses: a few steps settle each point of the valley
         options = replace(options or SolverOptions(), max_iterations=FOCAL_ITERATIONS_LIFTED)
-        rounds = {"rounds": FOCAL_ROUNDS_LIFTED}
+        rounds = {"rounds": FOCAL_ROUNDS_LIFTED, "final_profile": False}
     span = None
     if _cued(run) and run.auto.get("image_size"):  # a profile that is no valley moves only to plausible lengths
         span = tuple(f * float(np.hypot(*run.auto["image_size"])) for f in FOCAL_PLAUSIBLE)

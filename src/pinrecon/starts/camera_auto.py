@@ -533,7 +533,8 @@ def check_focal(problem, res, auto: dict | None, **kw) -> dict | None:
 
 def settle_focal(problem, res, auto: dict | None, *, options=None, rounds: int = 3, min_gain: float = 0.5,
                  steps: Sequence[float] = PROFILE_STEPS, tolerance: float = 0.1,
-                 threshold: float = PROFILE_THRESHOLD, undetermined_range: tuple[float, float] | None = None):
+                 threshold: float = PROFILE_THRESHOLD, undetermined_range: tuple[float, float] | None = None,
+                 final_profile: bool = True):
     """``(res, auto)``: the solve carried to the bottom of its focal length's cost profile,
     and :func:`check_focal`'s description of it.
 
@@ -546,7 +547,11 @@ def settle_focal(problem, res, auto: dict | None, *, options=None, rounds: int =
     report is the last profile's (``threshold``, ``tolerance``: :func:`profile_interval`).
     ``undetermined_range`` ``(lo, hi)`` px: when the first profile is no valley (the focal
     length NOT determined), the solve moves only to its points inside that range (a valley
-    that does not determine the focal length says nothing against a plausible one)."""
+    that does not determine the focal length says nothing against a plausible one).
+    ``final_profile`` False: after the last move the report is made from the profile points
+    already solved and the moved solve, instead of profiling again around it (the same
+    function of the focal length, sampled less densely there: it says "determined" only
+    where those points show the valley)."""
     if not auto or auto.get("projection") != "perspective":
         return res, auto
     from ..solver import solve
@@ -557,12 +562,16 @@ def settle_focal(problem, res, auto: dict | None, *, options=None, rounds: int =
     lo, hi = 0.0, np.inf
     if undetermined_range is not None and not _report(problem, res, solves, threshold, tolerance).determined:
         lo, hi = undetermined_range
-    for _ in range(rounds):
+    for k in range(rounds):
         _, cost, Q, g = min([x for x in solves if lo <= x[0] <= hi] or solves[:1], key=lambda s: s[1])
         if cost >= res.cost - min_gain:
             break
         res = solve(problem, Q, options, active=problem.active, g0=g)
-        solves = _profile_solves(problem, res, steps, options)
+        if k == rounds - 1 and not final_profile:
+            intr, g_fit = _focal_of(problem, res)
+            solves = [(intr.value(g_fit), float(res.cost), np.asarray(res.x, float), g_fit), *solves]
+        else:
+            solves = _profile_solves(problem, res, steps, options)
     rep = _report(problem, res, solves, threshold, tolerance)
     kf = auto.get("keyframe_focal")
     placed = _focal_of(problem, res)[0].pose_col is None  # held where the keyframes put it, not refined
