@@ -124,6 +124,36 @@ def test_video_command_writes_result_exports_and_overlay(video_run):
     assert res.keypoints3d.shape[0] == N and len(res.figure.keypoint_names) == 27  # the mediapipe33 map
 
 
+
+@pytest.mark.parametrize("how", ["another process", "here: no interpreter", "here: the process failed"])
+def test_plots_are_drawn_beside_the_overlay_or_here(cut, tracked, tmp_path, monkeypatch, how):
+    """The plots come from ``pinrecon plot`` in another process while the overlay is written;
+    where that process cannot start or fails, they are drawn in the command's own process:
+    the same four pictures either way."""
+    import subprocess
+
+    from pinrecon.cli import build_parser
+    from pinrecon.commands.video import run_video
+
+    started = []
+    popen = subprocess.Popen
+    monkeypatch.setattr(subprocess, "Popen", lambda cmd, **kw: started.append(cmd) or popen(cmd, **kw))
+    monkeypatch.setattr("pinrecon.windowed.usable_cpus", lambda: 2)
+    if how == "another process":  # and not here
+        monkeypatch.setattr("pinrecon.viz.plot_result", lambda *a, **k: pytest.fail("plots drawn here"))
+    else:
+        monkeypatch.setattr(sys, "executable", str(tmp_path / "no-python") if "no" in how else "false")
+    args = build_parser().parse_args(["video", str(cut), "--out", str(tmp_path / "out"), "--quiet"])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        run = run_video(args, tracked=[tracked])
+    pngs = sorted(p.name for p in run["files"] if p.suffix == ".png")
+    assert pngs == ["joint_angles.png", "reprojection.png", "reprojection_error.png", "stick_strip.png"]
+    for name in pngs:
+        assert cv2.imread(str(tmp_path / "out" / "plots" / name)).shape[0] > 100, name
+    assert len(started) == 1 and started[0][3:6] == ["plot", str(tmp_path / "out" / "result.npz"), "--out"]
+    assert (tmp_path / "out" / "overlay.mp4").stat().st_size > 0
+
 def test_overlay_plays_and_its_skeleton_lies_on_the_detections(video_run, openpose):
     _, out, _ = video_run
     cap = cv2.VideoCapture(str(out / "overlay.mp4"))

@@ -8,8 +8,8 @@ a camera estimated from the video (``--camera auto``, the default) or a calibrat
 file's camera order). Into ``DIR``: ``tracks.json`` (``tracks_<video>.json`` per video with
 several), ``result.npz``, ``motion.bvh``, ``motion.csv``, ``motion.trc``, ``plots/`` and
 ``overlay.mp4`` (``overlay_<video>.mp4``): the skeleton drawn over the input frames with a
-side view beside. Every output is checked writable and every video readable before the work
-starts.
+side view beside (the plots are drawn by ``pinrecon plot`` in a second process meanwhile).
+Every output is checked writable and every video readable before the work starts.
 """
 
 from __future__ import annotations
@@ -52,6 +52,54 @@ def _outputs(out: Path, videos: list[str]) -> dict:
         "trc": out / "motion.trc",
         "plots": out / "plots",
     }
+
+
+class _Plots:
+    """The plots of a saved result, drawn by ``pinrecon plot`` in a new process (Python, not a
+    fork: the detector's and OpenCV's threads make forking unsafe) while the caller writes the
+    overlay; :meth:`result` waits for it and returns the files. Where that process cannot run
+    or fails (a worker of a pool, one CPU, several videos' tracks, an error), the plots are
+    drawn in :meth:`result` itself, which then raises any error as it would have."""
+
+    def __init__(self, result_path: Path, folder: Path, tracks_paths: list[Path]):
+        import multiprocessing as mp
+        import os
+        import subprocess
+
+        from ..windowed import usable_cpus
+
+        self.folder, self.proc, self.seconds, self.t0 = folder, None, None, time.perf_counter()
+        if len(tracks_paths) != 1 or mp.parent_process() is not None or usable_cpus() < 2:
+            return
+        here = str(Path(__file__).resolve().parents[2])  # where this pinrecon was imported from, searched last
+        code = f"import sys; sys.path.append({here!r}); from pinrecon.cli import main; sys.exit(main())"
+        try:
+            self.proc = subprocess.Popen([sys.executable, "-c", code, "plot", str(result_path), "--out", str(folder),
+                                          "--tracks", str(tracks_paths[0]), "--no-animation"],
+                                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                         env={**os.environ, "MPLBACKEND": "Agg"})
+        except OSError:
+            self.proc = None
+
+    def result(self, res, tracks) -> list[Path]:
+        if self.proc is not None:
+            out, _ = self.proc.communicate()
+            self.seconds = time.perf_counter() - self.t0
+            if self.proc.returncode == 0:
+                return [Path(line) for line in out.splitlines() if line.strip()]
+        from ..viz import plot_result
+
+        return plot_result(res, self.folder, tracks=tracks if len(tracks) > 1 else tracks[0], animation=False)
+
+
+def _write_overlays(res, args, paths, tracks) -> tuple[list[Path], float]:
+    """Each video's overlay (``paths``, in the videos' order) and the seconds they took."""
+    from ..viz.overlay import write_overlay
+
+    t0 = time.perf_counter()
+    out = [write_overlay(res, video, paths[i], camera_index=i, tracks=tracks[i], max_height=args.overlay_height,
+                         progress=not args.quiet) for i, video in enumerate(args.videos)]
+    return out, time.perf_counter() - t0
 
 
 def run_video(args, tracked=None) -> dict:
@@ -116,25 +164,19 @@ def run_video(args, tracked=None) -> dict:
     written.append(export_result(files["result"], bvh=files["bvh"], csv=files["csv"], trc=files["trc"]))
     stages["exports"] = time.perf_counter() - t0
 
-    if not args.no_plots:
+    plots = None
+    if not args.no_plots:  # drawn by `pinrecon plot` in another process while the overlay is written here
+        plots = _Plots(files["result"], files["plots"], files["tracks"])
+    if not args.no_overlay:
+        paths, stages["overlay"] = _write_overlays(res, args, files["overlay"], tracks)
+        written.append(paths)
+    if plots is not None:
         t0 = time.perf_counter()
         try:
-            from ..viz import plot_result
-
-            written.append(plot_result(res, files["plots"], tracks=tracks if len(tracks) > 1 else tracks[0],
-                                       animation=False))
+            written.append(plots.result(res, tracks))
         except ImportError as exc:  # the viz extra (matplotlib) is optional
             print(f"pinrecon video: no plots ({exc})", file=sys.stderr)
-        stages["plots"] = time.perf_counter() - t0
-
-    if not args.no_overlay:
-        from ..viz.overlay import write_overlay
-
-        t0 = time.perf_counter()
-        for i, video in enumerate(args.videos):
-            written.append([write_overlay(res, video, files["overlay"][i], camera_index=i, tracks=tracks[i],
-                                          max_height=args.overlay_height, progress=not args.quiet)])
-        stages["overlay"] = time.perf_counter() - t0
+        stages["plots"] = plots.seconds or time.perf_counter() - t0
     seconds = time.perf_counter() - t_start
     return {"files": [Path(f) for group in written for f in group], "frames": tracks[0].T, "seconds": seconds,
             "result": res, "stages": stages}

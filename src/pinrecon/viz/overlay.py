@@ -111,6 +111,8 @@ def write_overlay(
     n_frames = int(np.floor(motion.times[-1] * info.fps + 0.5)) + 1 if tracks is None else tracks.T
     if info.frames:
         n_frames = min(n_frames, info.frames)
+    right = np.empty((H, W, 3), np.uint8)  # the side panel and the written frame, reused frame after frame
+    canvas = np.empty((H, 2 * W, 3), np.uint8)
     with atomic_path(out_path) as tmp:
         writer = cv2.VideoWriter(str(tmp), cv2.VideoWriter_fourcc(*"mp4v"), info.fps, (2 * W, H))
         if not writer.isOpened():
@@ -126,12 +128,12 @@ def write_overlay(
                             cv2.circle(left, tuple(np.round(det[t, k]).astype(int)), radius + 2, DETECTION_BGR, 1,
                                        cv2.LINE_AA)
                     draw(left, uv_cam[f])
-                    right = np.full((H, W, 3), PANEL_BGR, np.uint8)
+                    right[:] = PANEL_BGR
                     draw(right, uv_side[f])
                     label = f"side view  t={motion.times[f]:.2f}s"
                     cv2.putText(right, label, (10, 10 + 2 * radius + 10), cv2.FONT_HERSHEY_SIMPLEX,
                                 max(0.4, H / 1600), (230, 230, 230), 1, cv2.LINE_AA)
-                    writer.write(np.concatenate([left, right], axis=1))
+                    writer.write(np.concatenate([left, right], axis=1, out=canvas))
                     bar.update()
         finally:
             writer.release()
