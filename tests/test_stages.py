@@ -15,7 +15,7 @@ from pinrecon.stages import STAGES
 @pytest.fixture(scope="module")
 def short_walk(coco_walk):
     """One second of the detector walk (60 frames at 30 fps), no keyframes, auto camera."""
-    cam, tracks, P, _kf = coco_walk
+    _cam, tracks, P, _kf = coco_walk
     return tracks.frames(0, 30), P[:30]
 
 
@@ -122,3 +122,32 @@ def test_with_lifted_cues_each_stage_switched_off_alone_gives_a_valid_result(cue
     assert np.all(np.isfinite(res.q)) and np.nanmean(res.reprojection_error_px) < 6.0
     kp = res.figure.keypoint_index(list(cued_walk[0].names))
     assert pa_mpjpe(res.keypoints3d[:, kp], cued_walk[1]) < 60.0
+
+
+def test_with_lifted_cues_the_priors_switch_solves_from_the_same_start(cued_walk, human, monkeypatch):
+    """The lifted start turns only the root, which no pose prior sees: when the prior switches,
+    the clip is solved again from the first solve's start and measured lengths instead of
+    running them again (one start and one start on the measured lengths, not two of each).
+    Ground truth: the true walk, and the lengths the first solve measured."""
+    import sys
+
+    from pinrecon import stages as stages_module
+
+    reconstruct_module = sys.modules["pinrecon.reconstruct"]  # the package's name is the function's
+
+    starts = []
+    for module in (stages_module, reconstruct_module):  # the stage's start, and the start on the measured lengths
+        real = module.initial_trajectory
+        monkeypatch.setattr(module, "initial_trajectory", lambda *a, _real=real, **k: starts.append(1) or _real(*a, **k))
+    monkeypatch.setattr(reconstruct_module, "switch_share", lambda *a: -1.0)  # every clip switches
+    measured = []
+    real_remade = stages_module._remade
+    monkeypatch.setattr(stages_module, "_remade",
+                        lambda p, m, *a: measured.append(m.measured_lengths) or real_remade(p, m, *a))
+    res = _solve(cued_walk, human)
+    rep = {s.name: s.changed for s in res.stages}
+    assert rep["prior"].startswith("pose prior human_pose -> human_pose_mixture")
+    assert len(starts) == 2 and len(measured) == 1
+    assert res.calibration["lengths_from_tracks"] == measured[0] and len(measured[0]) == 4
+    kp = res.figure.keypoint_index(list(cued_walk[0].names))
+    assert pa_mpjpe(res.keypoints3d[:, kp], cued_walk[1]) < 40.0

@@ -528,6 +528,7 @@ def _lengths_from_tracks(problem: ReconstructionProblem, q0: np.ndarray, start: 
     q0 = initial_trajectory(motion, start)
     new.reports.update(getattr(motion, "reports", {}))
     new.measured_lengths = measured
+    new.lengths_from_tracks = {"log_factors0": theta, "sigma_proportions": np.where(held, HELD_SIGMA * sigma, sigma)}
     return new, q0
 
 

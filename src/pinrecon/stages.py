@@ -23,7 +23,9 @@ changed). A stage that has nothing to do returns ``None`` and is reported as ski
 ``prior``  the generic human's pose prior switched to its broader mixture and the clip solved
            again when more of its poses than :func:`pinrecon.unfamiliar.switch_share` are
            unknown to the default, pinrecon's lifter joining as lifted-pose rows (``lifter="auto"``);
-           not when the prior was adapted to keyframes (they decide the poses)
+           not when the prior was adapted to keyframes (they decide the poses); with the tracks'
+           own cues from the first solve's lifted start and lengths (it turns only the root,
+           which no pose prior sees)
 ``yield``  the pose prior widened and re-centred where the data disagree with it
            (:mod:`pinrecon.prior_yield`), the clip solved again warm
 ``turns``  fast turns the solution holds a turn too few of, wound (warm re-solves)
@@ -119,6 +121,7 @@ class Run:
     conflict: object = None  # the pose prior's variance factors (pinrecon.prior_yield.PriorConflict)
     relabelled: dict = field(default_factory=dict)  # extras key -> tracks frames relabelled by the stage labels
     caught: list = field(default_factory=list)
+    started: tuple | None = None  # the lifted start's (q0, problem): the prior's switch solves from it again
 
 
 def relabel_spans(tracks):
@@ -180,13 +183,19 @@ def _solve(run: Run) -> str:
     with warnings.catch_warnings(record=run.default_prior is not None) as caught:
         if run.default_prior is not None:
             warnings.simplefilter("always")
-        start = functools.partial(auto_start, lifted=False) if run.joined and run.start == "auto" else run.start
-        q0 = initial_trajectory(run.problem, start)
+        auto = isinstance(run.start, str) and run.start == "auto"
+        start = functools.partial(auto_start, lifted=False) if run.joined and auto else run.start
         what = "start and batch solve"
-        if run.lengths and run.measure_lengths is not None:
-            run.problem, q0 = run.measure_lengths(run.problem, q0, start, run.inputs)
-            if getattr(run.problem, "measured_lengths", None):
-                what += f", {len(run.problem.measured_lengths)} limb lengths measured from the tracks"
+        if run.started is not None:  # the lifted start and lengths of before the prior's switch
+            q0, run.problem = run.started[0], _remade(run.problem, run.started[1], run.inputs, run.mode)
+        else:
+            q0 = initial_trajectory(run.problem, start)
+            if run.lengths and run.measure_lengths is not None:
+                run.problem, q0 = run.measure_lengths(run.problem, q0, start, run.inputs)
+            if _lifted_start(run):
+                run.started = (q0, run.problem)
+        if getattr(run.problem, "measured_lengths", None):
+            what += f", {len(run.problem.measured_lengths)} limb lengths measured from the tracks"
         if run.yield_at_start:  # the start is the keyframes' poses: the data's own, before any compromise
             run.problem, run.conflict = adapt_prior(run.problem, q0, run.problem.g0, keyframes=True)
             if run.conflict is not None and run.conflict.conflicting:
@@ -194,6 +203,24 @@ def _solve(run: Run) -> str:
         run.res = solve(run.problem, q0, run.options, run.callback, active=run.problem.active, g0=run.problem.g0)
     run.caught = list(caught or [])
     return f"{what}: {run.res.iterations} iterations, {run.res.status}"
+
+
+def _remade(problem, measured, inputs: dict, mode: str):
+    """``problem`` (made from ``inputs`` after the prior's switch) with the limb lengths the
+    problem ``measured`` had measured from the tracks; ``problem`` itself when it had none.
+    The lifted start depends on neither prior: it turns only the root (:mod:`.starts.lifted`)."""
+    lengths = getattr(measured, "lengths_from_tracks", None)
+    if not lengths:
+        return problem
+    new = make_problem(**inputs, calibrate=mode, **lengths)
+    new.reports.update(measured.reports)
+    new.measured_lengths, new.lengths_from_tracks = measured.measured_lengths, lengths
+    return new
+
+
+def _lifted_start(run: Run) -> bool:
+    """Whether the start is the lifted one (the tracks' own cues, the ``auto`` start)."""
+    return isinstance(run.start, str) and run.start == "auto" and _cued(run)
 
 
 def _cued(run: Run) -> bool:
@@ -230,6 +257,8 @@ def _prior(run: Run) -> str | None:
         run.inputs["tracks"] = run.lifter(run.inputs["tracks"])
         run.joined = not given and getattr(run.inputs["tracks"], "lifted", None) is not None
     run.problem = make_problem(**run.inputs, calibrate=run.mode)
+    if run.started is not None and not _lifted_start(run):
+        run.started = None  # the lifter joined: its start now
     default, run.default_prior = run.default_prior, None
     _solve(run)
     run.default_prior, run.switch, run.judge = default, switch, default
