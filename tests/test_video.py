@@ -44,6 +44,37 @@ def cut(tmp_path_factory):
     return path
 
 
+
+def test_frames_decoded_ahead_are_the_same_frames(cut, monkeypatch):
+    """``iter_frames(ahead=k)`` decodes in a thread: the same frames in the same order, the
+    thread gone when the caller stops early, and a decoding error raised in the caller."""
+    import threading
+
+    from pinrecon.video import frames as frames_module
+    from pinrecon.video.frames import iter_frames
+
+    cap = cv2.VideoCapture(str(cut))  # ground truth: OpenCV read directly
+    truth = [cap.read()[1] for _ in range(N)]
+    cap.release()
+    got = list(iter_frames(cut, ahead=3))
+    assert len(got) == N and all(np.array_equal(a, b) for a, b in zip(got, truth))
+    assert len(list(iter_frames(cut, 4, ahead=2))) == 4
+
+    it = iter_frames(cut, ahead=2)
+    assert np.array_equal(next(it), truth[0])
+    it.close()
+    assert not any(t.name == "pinrecon-frames" for t in threading.enumerate())
+
+    read = frames_module._read
+
+    def broken(cap, max_frames):
+        yield from read(cap, 2)
+        raise OSError("the file went away")
+
+    monkeypatch.setattr(frames_module, "_read", broken)
+    with pytest.raises(OSError, match="went away"):
+        list(iter_frames(cut, ahead=2))
+
 @pytest.fixture(scope="module")
 def openpose():
     with warnings.catch_warnings():

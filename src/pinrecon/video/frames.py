@@ -9,6 +9,8 @@ extra. A file OpenCV cannot decode, or one without frames, is one
 from __future__ import annotations
 
 import os
+import queue
+import threading
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -85,17 +87,66 @@ def video_info(path: str | os.PathLike, *, fps: float | None = None) -> VideoInf
     return VideoInfo(str(path), rate, int(w), int(h), count)
 
 
-def iter_frames(path: str | os.PathLike, max_frames: int | None = None) -> Iterator[np.ndarray]:
+def iter_frames(path: str | os.PathLike, max_frames: int | None = None, *, ahead: int = 0) -> Iterator[np.ndarray]:
     """The video's frames in order, each an (H, W, 3) uint8 BGR array (OpenCV's order),
-    at most ``max_frames``."""
+    at most ``max_frames``. ``ahead`` > 0: a thread decodes up to that many frames ahead
+    of the caller (OpenCV lets go of the GIL while it decodes, so the decoding runs beside
+    the caller's own work on the frames)."""
     _, cap = _open(path)
+    if ahead <= 0:
+        try:
+            yield from _read(cap, max_frames)
+        finally:
+            cap.release()
+        return
+    frames: queue.Queue = queue.Queue(maxsize=ahead)
+    stop = threading.Event()
+
+    def reader():
+        try:
+            for frame in _read(cap, max_frames):
+                while not stop.is_set():
+                    try:
+                        frames.put(frame, timeout=0.1)
+                        break
+                    except queue.Full:
+                        continue
+                if stop.is_set():
+                    return
+            frames.put(_END)
+        except BaseException as exc:  # noqa: BLE001 - raised again in the caller's thread
+            frames.put(exc)
+        finally:
+            cap.release()
+
+    thread = threading.Thread(target=reader, name="pinrecon-frames", daemon=True)
+    thread.start()
     try:
-        n = 0
-        while max_frames is None or n < max_frames:
-            ok, frame = cap.read()
-            if not ok:
-                break
-            yield frame
-            n += 1
-    finally:
-        cap.release()
+        while True:
+            item = frames.get()
+            if item is _END:
+                return
+            if isinstance(item, BaseException):
+                raise item
+            yield item
+    finally:  # the caller stopped early (or the frames ended): the reader stops and lets the file go
+        stop.set()
+        while thread.is_alive():
+            try:
+                frames.get(timeout=0.1)
+            except queue.Empty:
+                pass
+        thread.join()
+
+
+_END = object()
+
+
+def _read(cap, max_frames: int | None) -> Iterator[np.ndarray]:
+    n = 0
+    while max_frames is None or n < max_frames:
+        ok, frame = cap.read()
+        if not ok:
+            break
+        yield frame
+        n += 1

@@ -170,7 +170,7 @@ def track_video(
     name = os.path.basename(str(path))
     with _quiet_native_stderr() as stderr, MediaPipePose(model_complexity) as pose, \
             FrameProgress(total, f"track {name}", enabled=progress, file=stderr) as bar:
-        for t, frame in enumerate(iter_frames(path, max_frames)):
+        for t, frame in enumerate(iter_frames(path, max_frames, ahead=4)):
             a, b, c = pose.detect(frame)
             uv.append(a)
             vis.append(b)

@@ -119,7 +119,7 @@ def write_overlay(
             raise InputError("OpenCV cannot write an MPEG-4 video there", file=out_path)
         try:
             with FrameProgress(n_frames, f"overlay {out_path.name}", enabled=progress) as bar:
-                for t, frame in enumerate(iter_frames(video, n_frames)):
+                for t, frame in enumerate(iter_frames(video, n_frames, ahead=4)):
                     f = motion.frame_at(t / info.fps)
                     left = cv2.resize(frame, (W, H), interpolation=cv2.INTER_AREA) if (W, H) != frame.shape[1::-1] \
                         else frame.copy()
