@@ -242,3 +242,28 @@ def test_cli_window_option(tmp_path, walk_300):
     res = pr.load_result(tmp_path / "r.npz")
     assert res.q.shape == (300, fig.nq)
     assert main(base + ["--window", "-3", "--out", str(tmp_path / "bad.npz")]) == 2
+
+
+@pytest.mark.parametrize("cues", [True, False])
+def test_with_the_tracks_own_lifted_cues_the_windows_have_no_mirror_stage(coco_walk, human, monkeypatch, cues):
+    """As in the batch path (``pinrecon.stages``): the lifter's 3D decides the limbs'
+    reflections, so the windows run no mirror stage with the broader prior when the tracks carry
+    it, and run it when they do not. Ground truth: the true walk."""
+    from pinrecon.lifted import Lifted
+    from pinrecon.metrics import pa_mpjpe
+    from pinrecon.weights import Weights
+
+    cam, tracks, P, _ = coco_walk
+    tr = tracks.frames(0, 60)
+    if cues:  # the true points in the camera's axes, a lifter's own size and origin, 3 cm noise
+        X = 1.7 * (P[:60] @ np.asarray(cam.R).T) + np.random.default_rng(4).normal(0.0, 0.05, P[:60].shape)
+        tr.lifted = Lifted(X, list(tr.names), np.ones(X.shape[:2]), "camera", "truth")
+    calls = []
+    real = windowed.mirror_stage
+    monkeypatch.setattr(windowed, "mirror_stage", lambda *a: calls.append(1) or real(*a))
+    monkeypatch.setattr(windowed, "usable_cpus", lambda: 1)  # the windows here, where the calls are counted
+    res = pr.reconstruct(human, tr, cam, window=40, weights=Weights(pose_prior_model="human_pose_mixture"),
+                         options=SolverOptions(max_iterations=15))
+    assert (len(calls) == 0) if cues else (len(calls) == 2)  # two windows of 40 frames over 60
+    kp = res.figure.keypoint_index(list(tr.names))
+    assert pa_mpjpe(res.keypoints3d[:, kp], P[:60]) < 60.0

@@ -54,6 +54,7 @@ from .starts.camera_auto import (
     keyframe_focal_interval,
     placed_by_keyframes,
 )
+from .starts.lifted import has_lifted
 from .tracks import Keyframe, Keyframes, Markers, Tracks
 from .unfamiliar import (
     BROADER_PRIOR,
@@ -388,7 +389,9 @@ def _reconstruct_windowed(problem, inputs, mode, calibrate, auto, start, init, s
         # windows measure no lengths: the default without 3D information stays the figure's own
         mode = "camera" if auto is not None else "none"
         problem = make_problem(**inputs, calibrate=mode)
-    res = solve_windowed(problem, start, options, callback, window=span, mirrors=_mirrors(problem, init),
+    # the tracks' own lifted cues decide the limbs' reflections: no mirror stage (as pinrecon.stages)
+    mirrors = not has_lifted(problem)
+    res = solve_windowed(problem, start, options, callback, window=span, mirrors=mirrors and _mirrors(problem, init),
                          adapt_prior=adapt, n_jobs=-1)
     result = _package(problem, res, auto, identify=False)
     switch = None if default is None or adapt else broader_prior(default, "auto", result.extras, share=limit)
@@ -397,7 +400,8 @@ def _reconstruct_windowed(problem, inputs, mode, calibrate, auto, start, init, s
         if lift is not None:  # poses the default prior does not know: the lifter's cues join
             inputs = {**inputs, "tracks": lift(inputs["tracks"])}
         problem = make_problem(**{**inputs, "weights": weights}, calibrate=mode)
-        res = solve_windowed(problem, start, options, callback, window=span, mirrors=_mirrors(problem, init), n_jobs=-1)
+        res = solve_windowed(problem, start, options, callback, window=span, mirrors=mirrors and _mirrors(problem, init),
+                             n_jobs=-1)
         result = _package(problem, res, auto, identify=False, judge=default)
         result.extras.update(switch_extras(*switch))
     changed = f"windows of {span} frames" + (f", pose prior -> {switch[0]}" if switch else "")
