@@ -267,3 +267,29 @@ def test_with_the_tracks_own_lifted_cues_the_windows_have_no_mirror_stage(coco_w
     assert (len(calls) == 0) if cues else (len(calls) == 2)  # two windows of 40 frames over 60
     kp = res.figure.keypoint_index(list(tr.names))
     assert pa_mpjpe(res.keypoints3d[:, kp], P[:60]) < 60.0
+
+
+def test_one_cameras_windows_measure_the_limb_lengths_on_the_leading_stretch(coco_walk, human):
+    """As the batch solve does for one camera and no keyframe, a clip solved in windows starts
+    its limb lengths where the tracks measure them (on the leading stretch, where the globals are
+    solved) instead of keeping the generic figure's. Ground truth: the true walk's thigh, shank,
+    upper-arm and forearm lengths (its own skeleton, not the generic human's)."""
+    import warnings
+
+    _, tracks, P, _ = coco_walk
+    names = list(tracks.names)
+
+    def limb_lengths(X):
+        pairs = [("left_hip", "left_knee"), ("left_knee", "left_ankle"), ("left_shoulder", "left_elbow"),
+                 ("left_elbow", "left_wrist")]
+        return np.array([np.median(np.linalg.norm(X[:, names.index(a)] - X[:, names.index(b)], axis=-1))
+                         for a, b in pairs])
+
+    truth = limb_lengths(P)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = pr.reconstruct(human, tracks, "auto", image_size=(1280, 720), window=60, floor="none")
+    assert sorted(res.calibration["lengths_from_tracks"]) == ["forearm", "shank", "thigh", "upper_arm"]
+    got = limb_lengths(res.keypoints3d[:, res.figure.keypoint_index(names)])
+    generic = limb_lengths(human.keypoints(human.neutral()[None])[:, human.keypoint_index(names)])
+    assert np.abs(got / truth - 1.0).mean() < 0.6 * np.abs(generic / truth - 1.0).mean()

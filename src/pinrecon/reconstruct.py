@@ -384,11 +384,18 @@ def _reconstruct_windowed(problem, inputs, mode, calibrate, auto, start, init, s
 
     t0 = time.perf_counter()
     figure, keyframes = inputs["figure"], inputs["keyframes"]
+    lengths = {}
     if calibrate is None and mode in ("lengths", "lengths+camera") and \
             default_calibrate(figure, keyframes, several_views=_several_views(inputs["tracks"])) == "none":
-        # windows measure no lengths: the default without 3D information stays the figure's own
-        mode = "camera" if auto is not None else "none"
-        problem = make_problem(**inputs, calibrate=mode)
+        # the lengths come from the tracks alone: measured on the leading stretch, as the batch solve's
+        found = _lengths_measurable(auto and auto["projection"]) and _stretch_lengths(inputs, mode, start)
+        if found:
+            lengths, measured = found
+        else:  # nothing measured: the figure's own lengths
+            mode = "camera" if auto is not None else "none"
+        problem = make_problem(**inputs, calibrate=mode, **lengths)
+        if lengths:
+            problem.measured_lengths = measured
     # the tracks' own lifted cues decide the limbs' reflections: no mirror stage (as pinrecon.stages)
     mirrors = not has_lifted(problem)
     res = solve_windowed(problem, start, options, callback, window=span, mirrors=mirrors and _mirrors(problem, init),
@@ -399,7 +406,9 @@ def _reconstruct_windowed(problem, inputs, mode, calibrate, auto, start, init, s
         weights = replace(inputs["weights"], pose_prior_model=switch[0])
         if lift is not None:  # poses the default prior does not know: the lifter's cues join
             inputs = {**inputs, "tracks": lift(inputs["tracks"])}
-        problem = make_problem(**{**inputs, "weights": weights}, calibrate=mode)
+        problem = make_problem(**{**inputs, "weights": weights}, calibrate=mode, **lengths)
+        if lengths:
+            problem.measured_lengths = measured
         res = solve_windowed(problem, start, options, callback, window=span, mirrors=mirrors and _mirrors(problem, init),
                              n_jobs=-1)
         result = _package(problem, res, auto, identify=False, judge=default)
@@ -485,24 +494,53 @@ HELD_SIGMA = 0.1
 
 def _lengths_from_tracks(problem: ReconstructionProblem, q0: np.ndarray, start: str, inputs: dict):
     """With proportions as unknowns, one camera and no 3D keyframe, the limb segments'
-    lengths measured from the tracks at ``q0``'s depths (:func:`pinrecon.starts.limbs.
-    measured_lengths`: the thighs, shanks, upper arms and forearms of the human, each a
-    pair of tracked keypoints one group alone scales, :meth:`Proportions.pair_groups`)
-    become the factors' start and the centre of their prior; the start is run again on
-    the figure with those lengths (its geometry uses the figure's own lengths). Returns
-    ``(problem, q0)``, unchanged when nothing applies. Without it the prior holds the
-    generic figure's proportions, which one view cannot correct (a forearm 50 % too long
-    stays too long and pushes its error into the joint angles)."""
+    lengths measured from the tracks at ``q0``'s depths (:func:`_measured`) become the
+    factors' start and the centre of their prior; the start is run again on the figure with
+    those lengths (its geometry uses the figure's own lengths). Returns ``(problem, q0)``,
+    unchanged when nothing applies. Without it the prior holds the generic figure's
+    proportions, which one view cannot correct (a forearm 50 % too long stays too long and
+    pushes its error into the joint angles)."""
+    found = _measured(problem, q0)
+    if found is None:
+        return problem, q0
+    lengths, measured = found
+    new = make_problem(**inputs, calibrate=problem.calibrate, **lengths)
+    motion = make_problem(**{**inputs, "figure": problem.proportions.calibrated_figure(lengths["log_factors0"])},
+                          calibrate="none")
+    q0 = initial_trajectory(motion, start)
+    new.reports.update(getattr(motion, "reports", {}))
+    new.measured_lengths, new.lengths_from_tracks = measured, lengths
+    return new, q0
+
+
+def _stretch_lengths(inputs: dict, mode: str, start):
+    """:func:`_measured` on the leading stretch of a clip solved in windows (its first
+    :data:`pinrecon.windowed.CALIBRATION_FRAMES` frames, where the windows' globals are solved),
+    at its start's depths; None where nothing is measured."""
+    from .windowed import CALIBRATION_FRAMES
+
+    tracks = inputs["tracks"]
+    lead = make_problem(**{**inputs, "tracks": tracks.frames(0, min(tracks.T, CALIBRATION_FRAMES))}, calibrate=mode)
+    return _measured(lead, initial_trajectory(lead, start)) if isinstance(start, str) else None
+
+
+def _measured(problem: ReconstructionProblem, q0: np.ndarray):
+    """``(make_problem's keyword arguments, {group: metres})`` of the limb lengths the tracks
+    measure at ``q0``'s depths (:func:`pinrecon.starts.limbs.measured_lengths`: the thighs,
+    shanks, upper arms and forearms of the human, each a pair of tracked keypoints one group
+    alone scales, :meth:`Proportions.pair_groups`): the factors' start and the centre of their
+    prior, the other groups held at the figure's. None without proportions to measure, with
+    several cameras or 3D keyframes (they measure the lengths themselves), or nothing measured."""
     from .starts.limbs import limb_chains, measured_lengths
 
     props = problem.proportions
     if props is None or len(problem.views) != 1 or has_point_keyframes(problem.keyframes):
-        return problem, q0
+        return None
     names = list(problem.tracks.names)
     pairs = [(c.kp[i], c.kp[i + 1]) for chains in limb_chains(problem.figure, names) for c in chains
              for i in range(len(c.kp) - 1)]
     if not pairs:
-        return problem, q0
+        return None
     groups = props.pair_groups(pairs)
     L = measured_lengths(problem, q0, pairs)
     Q0 = problem.keypoints(problem.figure.neutral()[None])[0]  # lengths at g0
@@ -518,22 +556,15 @@ def _lengths_from_tracks(problem: ReconstructionProblem, q0: np.ndarray, start: 
         if not 0.5 <= ratio <= 2.0:  # a camera or tracks far from the figure: say so, use the bound
             warnings.warn(f"the tracks measure the {props.names[g]} at {ratio:.2f} times the figure's; "
                           f"starting it at {float(np.clip(ratio, 0.5, 2.0)):.1f} times (check the camera and the "
-                          "keypoint names)", stacklevel=3)
+                          "keypoint names)", stacklevel=4)
             ratio = float(np.clip(ratio, 0.5, 2.0))
         theta[g] += float(np.log(ratio))
         measured[props.names[g]] = float(np.mean(model) * ratio)
         held[g] = False
     if not measured:
-        return problem, q0
+        return None
     sigma = problem.weights.sigma_proportions
-    new = make_problem(**inputs, calibrate=problem.calibrate, log_factors0=theta,
-                       sigma_proportions=np.where(held, HELD_SIGMA * sigma, sigma))
-    motion = make_problem(**{**inputs, "figure": props.calibrated_figure(theta)}, calibrate="none")
-    q0 = initial_trajectory(motion, start)
-    new.reports.update(getattr(motion, "reports", {}))
-    new.measured_lengths = measured
-    new.lengths_from_tracks = {"log_factors0": theta, "sigma_proportions": np.where(held, HELD_SIGMA * sigma, sigma)}
-    return new, q0
+    return {"log_factors0": theta, "sigma_proportions": np.where(held, HELD_SIGMA * sigma, sigma)}, measured
 
 
 def _package(problem: ReconstructionProblem, res: SolveResult, auto: dict | None = None, *,

@@ -16,7 +16,9 @@ by window, in order:
   geodesically (``pin.interpolate``), the weight of the new one going from 0 to 1 over
   the middle half of the overlap, away from both windows' ends where a window knows least;
 * global unknowns (a calibration) are solved once on a leading stretch of the clip
-  (:data:`CALIBRATION_FRAMES`, or the first window if longer), then held in every window;
+  (:data:`CALIBRATION_FRAMES`, or the first window if longer), then held in every window
+  (:func:`pinrecon.reconstruct` measures one camera's limb lengths from the tracks of that
+  stretch first, as the batch solve does on the clip);
   which of the fitted lengths that stretch's data fix
   (:func:`pinrecon.identifiability.proportions_identifiability`) is the result's
   ``identifiability`` attribute;
