@@ -271,8 +271,8 @@ def test_with_the_tracks_own_lifted_cues_the_windows_have_no_mirror_stage(coco_w
 
 def test_one_cameras_windows_measure_the_limb_lengths_on_the_leading_stretch(coco_walk, human):
     """As the batch solve does for one camera and no keyframe, a clip solved in windows starts
-    its limb lengths where the tracks measure them (on the leading stretch, where the globals are
-    solved) instead of keeping the generic figure's. Ground truth: the true walk's thigh, shank,
+    its limb lengths where the tracks measure them (on its first frames, before the globals are
+    solved on the leading stretch) instead of keeping the generic figure's. Ground truth: the true walk's thigh, shank,
     upper-arm and forearm lengths (its own skeleton, not the generic human's)."""
     import warnings
 

@@ -490,6 +490,10 @@ def reconstruct_markers(
 #: does not tell a shoulder's width from the trunk's twist (left free, it drifted by tens
 #: of per cent), so they keep the figure's own
 HELD_SIGMA = 0.1
+#: a clip solved in windows measures one camera's limb lengths on its first this many frames
+#: (a long clip's 2000-frame leading stretch measured them as well and raised the 18,000-frame
+#: bench's peak memory by 100 MB a process: bench/README.md, bench_long_clip)
+LENGTH_FRAMES = 1000
 
 
 def _lengths_from_tracks(problem: ReconstructionProblem, q0: np.ndarray, start: str, inputs: dict):
@@ -514,13 +518,11 @@ def _lengths_from_tracks(problem: ReconstructionProblem, q0: np.ndarray, start: 
 
 
 def _stretch_lengths(inputs: dict, mode: str, start):
-    """:func:`_measured` on the leading stretch of a clip solved in windows (its first
-    :data:`pinrecon.windowed.CALIBRATION_FRAMES` frames, where the windows' globals are solved),
-    at its start's depths; None where nothing is measured."""
-    from .windowed import CALIBRATION_FRAMES
-
+    """:func:`_measured` on the first :data:`LENGTH_FRAMES` frames of a clip solved in windows
+    (inside the leading stretch where the windows' globals are solved, with these lengths as
+    their start and prior), at its start's depths; None where nothing is measured."""
     tracks = inputs["tracks"]
-    lead = make_problem(**{**inputs, "tracks": tracks.frames(0, min(tracks.T, CALIBRATION_FRAMES))}, calibrate=mode)
+    lead = make_problem(**{**inputs, "tracks": tracks.frames(0, min(tracks.T, LENGTH_FRAMES))}, calibrate=mode)
     return _measured(lead, initial_trajectory(lead, start)) if isinstance(start, str) else None
 
 

@@ -17,8 +17,8 @@ by window, in order:
   the middle half of the overlap, away from both windows' ends where a window knows least;
 * global unknowns (a calibration) are solved once on a leading stretch of the clip
   (:data:`CALIBRATION_FRAMES`, or the first window if longer), then held in every window
-  (:func:`pinrecon.reconstruct` measures one camera's limb lengths from the tracks of that
-  stretch first, as the batch solve does on the clip);
+  (:func:`pinrecon.reconstruct` measures one camera's limb lengths from the tracks of its
+  first frames before, as the batch solve does on the clip);
   which of the fitted lengths that stretch's data fix
   (:func:`pinrecon.identifiability.proportions_identifiability`) is the result's
   ``identifiability`` attribute;
@@ -46,6 +46,8 @@ and, when it has a ``window`` method, a :class:`WindowReport` after each window.
 
 from __future__ import annotations
 
+import ctypes
+import gc
 import math
 import multiprocessing
 import os
@@ -345,11 +347,17 @@ def _solve_groups(s: _Setup, plan, jobs: int, callback, user_window) -> list[_So
     (the first window of a run starts cold); the callback's reports come over a queue, and
     the callback stopping one solve stops them all. Returns the windows in order, up to the
     first one stopped."""
+    global _INHERITED
     runs = [r.tolist() for r in np.array_split(np.arange(len(plan)), jobs)]
     ctx = multiprocessing.get_context("fork")  # the caller's script is not run again (see _jobs)
+    _INHERITED = s  # the workers are forked at the first submit: they find the setup here, not pickled to them
+    _trim_heap()
     with ctx.Manager() as manager, ProcessPoolExecutor(max_workers=jobs, mp_context=ctx) as pool:
         said, halt = manager.Queue(), manager.Event()
-        futures = [pool.submit(_worker_run, s, plan, run, callback is not None, said, halt) for run in runs]
+        try:
+            futures = [pool.submit(_worker_run, None, plan, run, callback is not None, said, halt) for run in runs]
+        finally:
+            _INHERITED = None
         while True:
             try:
                 kind, item = said.get(timeout=0.2)
@@ -392,9 +400,26 @@ def _solve_run(s: _Setup, plan, run, callback, on_window) -> list[_Solved]:
     return solved
 
 
-def _worker_run(s: _Setup, plan, run, forward: bool, said, halt) -> list[_Solved]:
-    """:func:`_solve_run` in a worker process: the iteration reports (``forward``) and the
-    window reports go to the queue ``said``; the event ``halt`` stops the solve."""
+def _trim_heap() -> None:
+    """Give the memory this process has freed back to the system (glibc's ``malloc_trim``)
+    before the workers are forked, so that they do not start with it; elsewhere nothing."""
+    gc.collect()
+    try:
+        ctypes.CDLL(None).malloc_trim(0)
+    except (OSError, AttributeError, TypeError):  # not glibc
+        pass
+
+
+#: the windows' setup, set while their worker processes are forked (they inherit it: a whole
+#: clip's problem pickled to every worker was a second copy of it in each)
+_INHERITED: _Setup | None = None
+
+
+def _worker_run(s: _Setup | None, plan, run, forward: bool, said, halt) -> list[_Solved]:
+    """:func:`_solve_run` in a worker process (``s`` None: the setup it inherited,
+    :data:`_INHERITED`): the iteration reports (``forward``) and the window reports go to the
+    queue ``said``; the event ``halt`` stops the solve."""
+    s = _INHERITED if s is None else s
 
     def callback(report):
         if forward:
