@@ -185,6 +185,33 @@ def test_plots_are_drawn_beside_the_overlay_or_here(cut, tracked, tmp_path, monk
     assert len(started) == 1 and started[0][3:6] == ["plot", str(tmp_path / "out" / "result.npz"), "--out"]
     assert (tmp_path / "out" / "overlay.mp4").stat().st_size > 0
 
+
+def test_an_overlay_that_fails_stops_the_plots_and_leaves_no_half_written_folder(cut, tracked, tmp_path,
+                                                                                 monkeypatch):
+    import subprocess
+
+    from pinrecon.cli import build_parser
+    from pinrecon.commands import video as video_module
+    from pinrecon.errors import InputError
+
+    procs = []
+    popen = subprocess.Popen
+    monkeypatch.setattr(subprocess, "Popen", lambda cmd, **kw: procs.append(popen(cmd, **kw)) or procs[-1])
+    monkeypatch.setattr("pinrecon.windowed.usable_cpus", lambda: 2)
+
+    def fails(*a):
+        time.sleep(0.3)  # the plots' process is under way (it takes seconds)
+        raise InputError("the disk is full", file="overlay.mp4")
+
+    monkeypatch.setattr(video_module, "_write_overlays", fails)
+    args = build_parser().parse_args(["video", str(cut), "--out", str(tmp_path / "out"), "--quiet"])
+    with warnings.catch_warnings(), pytest.raises(InputError, match="disk is full"):
+        warnings.simplefilter("ignore")
+        video_module.run_video(args, tracked=[tracked])
+    assert len(procs) == 1 and procs[0].returncode not in (None, 0)  # stopped, not finished
+    plots = tmp_path / "out" / "plots"
+    assert not plots.exists() or not any(plots.iterdir())
+
 def test_overlay_plays_and_its_skeleton_lies_on_the_detections(video_run, openpose):
     _, out, _ = video_run
     cap = cv2.VideoCapture(str(out / "overlay.mp4"))

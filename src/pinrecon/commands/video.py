@@ -62,6 +62,7 @@ class _Plots:
     drawn in :meth:`result` itself, which then raises any error as it would have."""
 
     def __init__(self, result_path: Path, folder: Path, tracks_paths: list[Path]):
+        import importlib.util
         import multiprocessing as mp
         import os
         import subprocess
@@ -69,7 +70,8 @@ class _Plots:
         from ..windowed import usable_cpus
 
         self.folder, self.proc, self.seconds, self.t0 = folder, None, None, time.perf_counter()
-        if len(tracks_paths) != 1 or mp.parent_process() is not None or usable_cpus() < 2:
+        if len(tracks_paths) != 1 or mp.parent_process() is not None or usable_cpus() < 2 \
+                or importlib.util.find_spec("matplotlib") is None:  # no viz extra: said by result()
             return
         here = str(Path(__file__).resolve().parents[2])  # where this pinrecon was imported from, searched last
         code = f"import sys; sys.path.append({here!r}); from pinrecon.cli import main; sys.exit(main())"
@@ -80,6 +82,22 @@ class _Plots:
                                          env={**os.environ, "MPLBACKEND": "Agg"})
         except OSError:
             self.proc = None
+
+    def stop(self) -> None:
+        """Stop the process (the caller failed): interrupted, it removes what it had staged
+        (``pinrecon plot`` writes its folder whole or not at all)."""
+        import os
+        import signal
+        import subprocess
+
+        if self.proc is None or self.proc.poll() is not None:
+            return
+        self.proc.send_signal(signal.SIGINT if os.name == "posix" else signal.SIGTERM)
+        try:
+            self.proc.communicate(timeout=10)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+            self.proc.communicate()
 
     def result(self, res, tracks) -> list[Path]:
         if self.proc is not None:
@@ -168,7 +186,12 @@ def run_video(args, tracked=None) -> dict:
     if not args.no_plots:  # drawn by `pinrecon plot` in another process while the overlay is written here
         plots = _Plots(files["result"], files["plots"], files["tracks"])
     if not args.no_overlay:
-        paths, stages["overlay"] = _write_overlays(res, args, files["overlay"], tracks)
+        try:
+            paths, stages["overlay"] = _write_overlays(res, args, files["overlay"], tracks)
+        except BaseException:
+            if plots is not None:
+                plots.stop()
+            raise
         written.append(paths)
     if plots is not None:
         t0 = time.perf_counter()
