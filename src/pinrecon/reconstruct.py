@@ -42,7 +42,7 @@ from .rows import Measurement2D
 from .rows.lifted import LiftedPose, disagreement_extras
 from .rows.posture import prior_for
 from .solver import SolveResult, SolverOptions, globals_of, solve
-from .stages import Run, StageReport, check_skip, relabel_inputs, run_stages
+from .stages import Run, StageReport, check_skip, relabel_inputs, run_stages, with_lengths
 from .starts import available_starts, get_start, initial_trajectory, sparse_keyframes
 from .starts.camera_auto import (
     AutoCamera,
@@ -384,18 +384,14 @@ def _reconstruct_windowed(problem, inputs, mode, calibrate, auto, start, init, s
 
     t0 = time.perf_counter()
     figure, keyframes = inputs["figure"], inputs["keyframes"]
-    lengths = {}
+    found = None
     if calibrate is None and mode in ("lengths", "lengths+camera") and \
             default_calibrate(figure, keyframes, several_views=_several_views(inputs["tracks"])) == "none":
-        # the lengths come from the tracks alone: measured on the leading stretch, as the batch solve's
-        found = _lengths_measurable(auto and auto["projection"]) and _stretch_lengths(inputs, mode, start)
-        if found:
-            lengths, measured = found
-        else:  # nothing measured: the figure's own lengths
+        # the lengths come from the tracks alone: measured on the clip's first frames, as the batch solve's
+        found = _stretch_lengths(inputs, mode, start) if _lengths_measurable(auto and auto["projection"]) else None
+        if found is None:  # nothing measured: the figure's own lengths
             mode = "camera" if auto is not None else "none"
-        problem = make_problem(**inputs, calibrate=mode, **lengths)
-        if lengths:
-            problem.measured_lengths = measured
+        problem = with_lengths(inputs, mode, *found) if found else make_problem(**inputs, calibrate=mode)
     # the tracks' own lifted cues decide the limbs' reflections: no mirror stage (as pinrecon.stages)
     mirrors = not has_lifted(problem)
     res = solve_windowed(problem, start, options, callback, window=span, mirrors=mirrors and _mirrors(problem, init),
@@ -406,9 +402,8 @@ def _reconstruct_windowed(problem, inputs, mode, calibrate, auto, start, init, s
         weights = replace(inputs["weights"], pose_prior_model=switch[0])
         if lift is not None:  # poses the default prior does not know: the lifter's cues join
             inputs = {**inputs, "tracks": lift(inputs["tracks"])}
-        problem = make_problem(**{**inputs, "weights": weights}, calibrate=mode, **lengths)
-        if lengths:
-            problem.measured_lengths = measured
+        inputs = {**inputs, "weights": weights}
+        problem = with_lengths(inputs, mode, *found) if found else make_problem(**inputs, calibrate=mode)
         res = solve_windowed(problem, start, options, callback, window=span, mirrors=mirrors and _mirrors(problem, init),
                              n_jobs=-1)
         result = _package(problem, res, auto, identify=False, judge=default)
@@ -508,22 +503,21 @@ def _lengths_from_tracks(problem: ReconstructionProblem, q0: np.ndarray, start: 
     if found is None:
         return problem, q0
     lengths, measured = found
-    new = make_problem(**inputs, calibrate=problem.calibrate, **lengths)
     motion = make_problem(**{**inputs, "figure": problem.proportions.calibrated_figure(lengths["log_factors0"])},
                           calibrate="none")
     q0 = initial_trajectory(motion, start)
-    new.reports.update(getattr(motion, "reports", {}))
-    new.measured_lengths, new.lengths_from_tracks = measured, lengths
-    return new, q0
+    return with_lengths(inputs, problem.calibrate, lengths, measured, getattr(motion, "reports", {})), q0
 
 
 def _stretch_lengths(inputs: dict, mode: str, start):
     """:func:`_measured` on the first :data:`LENGTH_FRAMES` frames of a clip solved in windows
     (inside the leading stretch where the windows' globals are solved, with these lengths as
     their start and prior), at its start's depths; None where nothing is measured."""
+    if not isinstance(start, str):  # a given start trajectory: no start to measure at
+        return None
     tracks = inputs["tracks"]
     lead = make_problem(**{**inputs, "tracks": tracks.frames(0, min(tracks.T, LENGTH_FRAMES))}, calibrate=mode)
-    return _measured(lead, initial_trajectory(lead, start)) if isinstance(start, str) else None
+    return _measured(lead, initial_trajectory(lead, start))
 
 
 def _measured(problem: ReconstructionProblem, q0: np.ndarray):

@@ -212,9 +212,18 @@ def _remade(problem, measured, inputs: dict, mode: str):
     lengths = getattr(measured, "lengths_from_tracks", None)
     if not lengths:
         return problem
+    return with_lengths(inputs, mode, lengths, measured.measured_lengths, measured.reports)
+
+
+def with_lengths(inputs: dict, mode: str, lengths: dict, measured: dict, reports: dict | None = None):
+    """:func:`~pinrecon.problem.make_problem` of ``inputs`` (calibration ``mode``) with the
+    limb lengths measured from the tracks as the proportions' start and the centre of their
+    prior: ``lengths``, make_problem's ``log_factors0`` and ``sigma_proportions``; ``measured``,
+    metres per segment group (the result's ``calibration["lengths_from_tracks"]``); ``reports``
+    added to the problem's."""
     new = make_problem(**inputs, calibrate=mode, **lengths)
-    new.reports.update(measured.reports)
-    new.measured_lengths, new.lengths_from_tracks = measured.measured_lengths, lengths
+    new.reports.update(reports or {})
+    new.measured_lengths, new.lengths_from_tracks = measured, lengths
     return new
 
 

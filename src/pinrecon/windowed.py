@@ -355,7 +355,7 @@ def _solve_groups(s: _Setup, plan, jobs: int, callback, user_window) -> list[_So
     with ctx.Manager() as manager, ProcessPoolExecutor(max_workers=jobs, mp_context=ctx) as pool:
         said, halt = manager.Queue(), manager.Event()
         try:
-            futures = [pool.submit(_worker_run, None, plan, run, callback is not None, said, halt) for run in runs]
+            futures = [pool.submit(_worker_run, plan, run, callback is not None, said, halt) for run in runs]
         finally:
             _INHERITED = None
         while True:
@@ -415,11 +415,11 @@ def _trim_heap() -> None:
 _INHERITED: _Setup | None = None
 
 
-def _worker_run(s: _Setup | None, plan, run, forward: bool, said, halt) -> list[_Solved]:
-    """:func:`_solve_run` in a worker process (``s`` None: the setup it inherited,
-    :data:`_INHERITED`): the iteration reports (``forward``) and the window reports go to the
-    queue ``said``; the event ``halt`` stops the solve."""
-    s = _INHERITED if s is None else s
+def _worker_run(plan, run, forward: bool, said, halt) -> list[_Solved]:
+    """:func:`_solve_run` in a worker process, on the setup it inherited (:data:`_INHERITED`):
+    the iteration reports (``forward``) and the window reports go to the queue ``said``; the
+    event ``halt`` stops the solve."""
+    s = _INHERITED
 
     def callback(report):
         if forward:
