@@ -128,6 +128,7 @@ def test_the_last_move_may_report_from_the_profile_already_solved(short_walk, mo
     problem, res0, auto = seen["problem"], seen["res"], seen["auto"]
     calls, real = [], solver.solve
     monkeypatch.setattr(solver, "solve", lambda *a, **k: calls.append(1) or real(*a, **k))
+    monkeypatch.setattr("pinrecon.processes.forkable", lambda: False)  # every solve here, where it is counted
     out = {}
     for final in (True, False):
         calls.clear()
@@ -146,6 +147,35 @@ def test_the_last_move_may_report_from_the_profile_already_solved(short_walk, mo
     want = sorted([(rep_t["focal_px"], float(res_t.cost)), *map(tuple, first["profile"])])
     np.testing.assert_allclose(sorted(map(tuple, rep_f["profile"])), want, rtol=1e-9)
     assert len(rep_t["profile"]) == 7 and len(rep_f["profile"]) == 8
+
+
+def test_the_longer_focal_lengths_are_profiled_beside_with_the_same_points(short_walk, monkeypatch):
+    """Where a child can be forked, it solves the profile's longer focal lengths while this
+    process solves the shorter ones: the same points to the last digit, three of the six solves
+    here. Ground truth: the profile solved here alone."""
+    from pinrecon import solver, stages
+    from pinrecon.starts.camera_auto import check_focal
+
+    seen = {}
+    monkeypatch.setattr(stages, "settle_focal", lambda problem, res, auto, **kw: seen.update(
+        problem=problem, res=res, auto=auto) or (res, auto))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        pr.reconstruct(pr.Figure.human(), short_walk, AutoCamera(SIZE, fov_deg=60.0), skip=["feet"],
+                       options=pr.SolverOptions(max_iterations=4))
+    calls, real = [], solver.solve
+    monkeypatch.setattr(solver, "solve", lambda *a, **k: calls.append(1) or real(*a, **k))
+    out = {}
+    for fork in (False, True):
+        monkeypatch.setattr("pinrecon.processes.forkable", lambda fork=fork: fork)
+        calls.clear()
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            out[fork] = check_focal(seen["problem"], seen["res"], seen["auto"])["focal"], len(calls)
+    (here, n_here), (beside, n_beside) = out[False], out[True]
+    assert (n_here, n_beside) == (6, 3)
+    assert len(here["profile"]) == 7 and here["profile"] == beside["profile"]
+    assert here["interval_px"] == beside["interval_px"]
 
 
 # ----------------------------------------------------------------------------- keyframes place the camera

@@ -138,7 +138,7 @@ def test_file_size(name):
 # The layers of docs/architecture.md, lowest first. A module may import its own layer and
 # the layers below it, never one above.
 LAYERS = [
-    ("base", ["pinrecon.errors", "pinrecon._resources", "pinrecon.rotations", "pinrecon.io", "pinrecon.io.atomic",
+    ("base", ["pinrecon.errors", "pinrecon.processes", "pinrecon._resources", "pinrecon.rotations", "pinrecon.io", "pinrecon.io.atomic",
               "pinrecon.io.jsonfile", "pinrecon.io.fields", "pinrecon.io.track_arrays", "pinrecon.kinematics", "pinrecon.datasets"]),
     ("domain", ["pinrecon.anatomy", "pinrecon.figure_files", "pinrecon.figure", "pinrecon.figure_bvh", "pinrecon.cameras", "pinrecon.floor", "pinrecon.tracks", "pinrecon.lifted", "pinrecon.lifter", "pinrecon.layouts",
                 "pinrecon.proportions", "pinrecon.io.bvh_format", "pinrecon.io.bvh_urdf", "pinrecon.io.bvh",

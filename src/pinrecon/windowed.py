@@ -50,7 +50,6 @@ import ctypes
 import gc
 import math
 import multiprocessing
-import os
 import queue as queue_module
 import time
 import warnings
@@ -66,6 +65,7 @@ from .identifiability import proportions_identifiability
 from .prior_yield import adapt_prior as adapt_to_keyframes
 from .prior_yield import decided_by_keyframes, pose_prior_row, with_pose_prior
 from .problem import make_problem
+from .processes import n_processes, usable_cpus
 from .solver import SolveResult, SolverOptions, costs_at, solve
 from .starts import initial_trajectory
 from .starts.mirrors import MirrorStage, mirror_stage
@@ -308,24 +308,6 @@ def _solve_window(s: _Setup, k: int, a: int, e: int, warm, callback) -> _Solved:
 
 def _window_report(out: _Solved, count: int) -> WindowReport:
     return WindowReport(out.index + 1, count, out.first, out.last, out.iterations, out.cost, out.status, out.seconds)
-
-
-def usable_cpus() -> int:
-    """The CPUs this process may run on (its affinity where the platform has one)."""
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # not on Linux
-        return os.cpu_count() or 1
-
-
-def n_processes(n_jobs, at_most: int, cpus: int) -> int:
-    """The processes ``n_jobs`` asks for, scikit-learn's convention (``None`` or 1: this one,
-    -1: one per CPU of ``cpus``), at most ``at_most``; anything else refused (field ``n_jobs``)."""
-    if n_jobs is None:
-        return 1
-    if isinstance(n_jobs, bool) or not isinstance(n_jobs, int) or n_jobs == 0 or n_jobs < -1:
-        raise InputError(f"must be a whole number of processes (-1: one per CPU); got {n_jobs!r}", field="n_jobs")
-    return max(1, min(at_most, cpus if n_jobs == -1 else n_jobs))
 
 
 def _jobs(n_jobs, n_windows: int) -> int:

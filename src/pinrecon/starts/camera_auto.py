@@ -56,6 +56,7 @@ import numpy as np
 
 from ..cameras import Orthographic, Perspective, look_at_rotation
 from ..errors import InputError
+from ..processes import Beside
 from .camera_keyframes import (
     PROFILE_THRESHOLD,
     camera_from_keyframes,
@@ -406,30 +407,39 @@ def fitted_focal(problem, res) -> float | None:
 
 def _profile_solves(problem, res, steps, options):
     """The profile's solves: ``[(focal_px, cost, Q, g)]``, the fit first; None without an
-    auto focal length."""
-    from ..solver import solve
-
+    auto focal length. The longer focal lengths are solved in a child process beside the
+    shorter ones where one can be forked (:class:`~pinrecon.processes.Beside`)."""
     of = _focal_of(problem, res)
     if of is None:
         return None
     intr, g_fit = of
+    first = [(intr.value(g_fit), float(res.cost), np.asarray(res.x, float), g_fit)]
+    with Beside(_profile_side, problem, res, intr, g_fit, steps, options, 1.0) as longer:
+        shorter = _profile_side(problem, res, intr, g_fit, steps, options, -1.0)
+        return first + longer.result() + shorter
+
+
+def _profile_side(problem, res, intr, g_fit, steps, options, sign: float):
+    """The profile's solves on one side of the fit (``sign`` 1: longer focal lengths), each
+    from the one before it."""
+    from ..solver import solve
+
     col = intr.col
     f_fit = intr.value(g_fit)
     cam_fit = intr.camera(g_fit)
     frozen = np.ones(len(g_fit), bool)
     frozen[col] = False
-    out = [(f_fit, float(res.cost), np.asarray(res.x, float), g_fit)]
-    for sign in (1.0, -1.0):
-        Q, gg, last = np.array(res.x, float), g_fit.copy(), 0.0
-        for d in sorted(steps):
-            gg = gg.copy()
-            gg[col] = g_fit[col] + sign * d
-            Q = stretch_depth(Q, cam_fit, float(np.exp(sign * d - last)))
-            r = solve(problem, Q, options, active=problem.active, g0=gg, active_globals=frozen)
-            Q, last = r.x, sign * d
-            if r.g is not None and len(r.g):
-                gg = np.array(r.g, float)
-            out.append((float(f_fit * np.exp(sign * d)), float(r.cost), Q, gg))
+    out = []
+    Q, gg, last = np.array(res.x, float), g_fit.copy(), 0.0
+    for d in sorted(steps):
+        gg = gg.copy()
+        gg[col] = g_fit[col] + sign * d
+        Q = stretch_depth(Q, cam_fit, float(np.exp(sign * d - last)))
+        r = solve(problem, Q, options, active=problem.active, g0=gg, active_globals=frozen)
+        Q, last = r.x, sign * d
+        if r.g is not None and len(r.g):
+            gg = np.array(r.g, float)
+        out.append((float(f_fit * np.exp(sign * d)), float(r.cost), Q, gg))
     return out
 
 
