@@ -3,6 +3,8 @@ off alone still gives a valid result, and the reports round-trip through the res
 
 from __future__ import annotations
 
+import sys
+
 import numpy as np
 import pytest
 
@@ -151,3 +153,52 @@ def test_with_lifted_cues_the_priors_switch_solves_from_the_same_start(cued_walk
     assert res.calibration["lengths_from_tracks"] == measured[0] and len(measured[0]) == 4
     kp = res.figure.keypoint_index(list(cued_walk[0].names))
     assert pa_mpjpe(res.keypoints3d[:, kp], cued_walk[1]) < 40.0
+
+
+def test_with_lifted_cues_the_switched_solve_made_beside_is_the_one_made_after(cued_walk, human, monkeypatch):
+    """Where a CPU is spare, a child solves the switched prior's problem while the first solve
+    runs (both start from the same lifted start): the result is the one the prior stage solves
+    after the first solve, to the last digit, the stage's solve is not made again here, and the
+    callback hears the switched solve's iterations all the same. Ground truth: the same call with
+    no child."""
+    from pinrecon import stages as stages_module
+
+    reconstruct_module = sys.modules["pinrecon.reconstruct"]
+    monkeypatch.setattr(reconstruct_module, "switch_share", lambda *a: -1.0)  # every clip switches
+    real = stages_module.solve
+    out = {}
+    for spare in (False, True):
+        monkeypatch.setattr(stages_module, "forkable", lambda spare=spare: spare)
+        calls, heard = [], []
+        monkeypatch.setattr(stages_module, "solve", lambda *a, calls=calls, **k: calls.append(1) or real(*a, **k))
+        res = _solve(cued_walk, human, callback=lambda rep, heard=heard: heard.append(rep.iteration) and False)
+        out[spare] = res, len(calls), heard
+    (serial, n_serial, heard_serial), (beside, n_beside, heard_beside) = out[False], out[True]
+    assert {s.name: s.changed for s in beside.stages}["prior"].startswith("pose prior human_pose -> human_pose_mixture")
+    np.testing.assert_array_equal(beside.q, serial.q)
+    assert beside.solve.cost == serial.solve.cost
+    assert (n_serial, n_beside) == (2, 1)  # the first solve and the switched one; the first alone
+    assert heard_beside == heard_serial
+
+
+def test_a_callback_that_stops_the_switched_solve_is_obeyed_beside(cued_walk, human, monkeypatch):
+    """A callback that stops the switched solve at its first iteration: the solve made beside
+    is not taken (it ran to the end), the stage solves it here and stops where the callback
+    says, as without a child. Ground truth: the same call with no child."""
+    from pinrecon import stages as stages_module
+
+    reconstruct_module = sys.modules["pinrecon.reconstruct"]
+    monkeypatch.setattr(reconstruct_module, "switch_share", lambda *a: -1.0)
+    out = {}
+    for spare in (False, True):
+        monkeypatch.setattr(stages_module, "forkable", lambda spare=spare: spare)
+        stage, stopped = [], []
+        res = _solve(cued_walk, human, progress=stage.append,
+                     callback=lambda rep, stage=stage, stopped=stopped: stage[-1] == "prior" and not stopped.append(1))
+        out[spare] = res, len(stopped)
+    (serial, n_serial), (beside, n_beside) = out[False], out[True]
+    prior = [{s.name: s for s in r.stages}["prior"] for r in (serial, beside)]
+    assert prior[0].changed.startswith("pose prior") and prior[1].changed == prior[0].changed
+    assert prior[1].cost_after == prior[0].cost_after
+    assert (n_serial, n_beside) == (1, 2)  # stopped at the first iteration; beside, at the first replayed, then here
+    np.testing.assert_array_equal(beside.q, serial.q)

@@ -62,6 +62,7 @@ from .errors import InputError
 from .faults import fault_stage, relabel_sides, report_outliers, side_swap_frames
 from .prior_yield import adapt_prior, yield_to_data
 from .problem import ReconstructionProblem, make_problem
+from .processes import Beside, forkable
 from .result import StageReport, spans_text
 from .solver import SolveResult, SolverOptions, solve
 from .starts import auto_start, initial_trajectory
@@ -122,6 +123,8 @@ class Run:
     relabelled: dict = field(default_factory=dict)  # extras key -> tracks frames relabelled by the stage labels
     caught: list = field(default_factory=list)
     started: tuple | None = None  # the lifted start's (q0, problem): the prior's switch solves from it again
+    spare_cpu: bool = False  # a child may solve beside this process (pinrecon.processes.forkable)
+    beside: object = None  # the prior's switch solved beside the first solve: (name, Beside)
 
 
 def relabel_spans(tracks):
@@ -178,7 +181,7 @@ def _labels(run: Run) -> str | None:
     return f"left and right exchanged back on frames {'; '.join(said)}"
 
 
-def _solve(run: Run) -> str:
+def _solve(run: Run, solved: SolveResult | None = None) -> str:
     # with a broader prior in reserve, the warnings wait for the prior stage's verdict
     with warnings.catch_warnings(record=run.default_prior is not None) as caught:
         if run.default_prior is not None:
@@ -194,13 +197,15 @@ def _solve(run: Run) -> str:
                 run.problem, q0 = run.measure_lengths(run.problem, q0, start, run.inputs)
             if _lifted_start(run):
                 run.started = (q0, run.problem)
+                _switch_beside(run)
         if getattr(run.problem, "measured_lengths", None):
             what += f", {len(run.problem.measured_lengths)} limb lengths measured from the tracks"
         if run.yield_at_start:  # the start is the keyframes' poses: the data's own, before any compromise
             run.problem, run.conflict = adapt_prior(run.problem, q0, run.problem.g0, keyframes=True)
             if run.conflict is not None and run.conflict.conflicting:
                 what += f", pose prior adapted to the keyframes on {len(run.conflict.conflicting)} joint(s)"
-        run.res = solve(run.problem, q0, run.options, run.callback, active=run.problem.active, g0=run.problem.g0)
+        run.res = solved if solved is not None else \
+            solve(run.problem, q0, run.options, run.callback, active=run.problem.active, g0=run.problem.g0)
     run.caught = list(caught or [])
     return f"{what}: {run.res.iterations} iterations, {run.res.status}"
 
@@ -256,11 +261,26 @@ def _prior(run: Run) -> str | None:
     focal = _degenerate_focal(run) if switch is None and run.default_prior in BROADER_PRIOR else None
     if focal is not None:  # a degenerate first solve: the broader route (and the lifter's cues) from the start
         switch, run.switch_focal = (BROADER_PRIOR[run.default_prior], unfamiliar_share(extras)), focal
+    beside, run.beside = run.beside, None
     if switch is None:
+        if beside is not None:
+            beside[1].cancel()
         _reissue(run)
         return None
     run.caught = []  # the first solve's warnings are dropped
-    run.inputs["weights"] = replace(run.inputs["weights"], pose_prior_model=switch[0])
+    default = run.default_prior
+    _switch_to(run, switch[0], _taken(run, beside, switch[0]))
+    run.switch, run.judge = switch, default
+    run.mirrors = run.mirrors or run.problem.weights.pose_prior_model in BROADER_PRIOR.values()
+    why = f"the auto camera's focal length at {focal:.0f} px, implausible" if focal is not None else \
+        f"{100 * switch[1]:.0f} % of the poses unfamiliar"
+    return f"pose prior {default} -> {switch[0]} ({why}), solved again"
+
+
+def _switch_to(run: Run, name: str, solved: SolveResult | None = None) -> SolveResult:
+    """The prior stage's switch to the broader prior ``name`` on ``run``: its inputs, problem
+    and start made again and solved (or ``solved``, the same solve made beside); ``run.res``."""
+    run.inputs["weights"] = replace(run.inputs["weights"], pose_prior_model=name)
     if run.lifter is not None:  # poses the default prior does not know: the lifter's cues join
         given = getattr(run.inputs["tracks"], "lifted", None) is not None
         run.inputs["tracks"] = run.lifter(run.inputs["tracks"])
@@ -269,12 +289,38 @@ def _prior(run: Run) -> str | None:
     if run.started is not None and not _lifted_start(run):
         run.started = None  # the lifter joined: its start now
     default, run.default_prior = run.default_prior, None
-    _solve(run)
-    run.default_prior, run.switch, run.judge = default, switch, default
-    run.mirrors = run.mirrors or run.problem.weights.pose_prior_model in BROADER_PRIOR.values()
-    why = f"the auto camera's focal length at {focal:.0f} px, implausible" if focal is not None else \
-        f"{100 * switch[1]:.0f} % of the poses unfamiliar"
-    return f"pose prior {default} -> {switch[0]} ({why}), solved again"
+    _solve(run, solved)
+    run.default_prior = default
+    return run.res
+
+
+def _switch_beside(run: Run) -> None:
+    """With the tracks' own cues the switched solve starts where the first does (the lifted start
+    and lengths, :func:`_remade`): where a CPU is spare, a child solves it beside the first solve,
+    so that a switch costs no time of its own (``run.beside``; the child's copy of ``run`` is its
+    own). The child's solve reports its iterations to nobody; :func:`_taken` replays them."""
+    broader = BROADER_PRIOR.get(run.default_prior) if run.default_prior is not None else None
+    if broader is None or not run.spare_cpu or run.yield_at_start or run.beside is not None:
+        return
+    callback, run.callback = run.callback, None
+    try:
+        run.beside = (broader, Beside(_switch_to, run, broader))
+    finally:
+        run.callback = callback
+
+
+def _taken(run: Run, beside, name: str) -> SolveResult | None:
+    """The switched solve made beside (:func:`_switch_beside`) for the prior ``name``, its
+    iterations replayed to the callback; None when there is none, or the callback stops it
+    (then it is solved here, where the callback is heard)."""
+    if beside is None or beside[0] != name:
+        if beside is not None:
+            beside[1].cancel()
+        return None
+    res = beside[1].result()
+    if run.callback is not None and any(run.callback(rep) for rep in res.report):
+        return None
+    return res
 
 
 def _degenerate_focal(run: Run) -> float | None:
@@ -377,6 +423,18 @@ def run_stages(run: Run, skip: Iterable[str] = (), progress: Callable | None = N
     """Run :data:`STAGES` in order on ``run`` (all but those in ``skip``); ``progress(name)``
     is called as each stage starts. Returns one :class:`StageReport` per stage."""
     reports = []
+    run.spare_cpu = "prior" not in skip and forkable()
+    try:
+        _run_each(run, skip, progress, reports)
+    finally:
+        if run.beside is not None:  # a stage failed, or never took it
+            run.beside[1].cancel()
+            run.beside = None
+    _reissue(run)  # the main solve's warnings when the prior stage was switched off
+    return reports
+
+
+def _run_each(run: Run, skip, progress, reports: list) -> None:
     for name, stage in STAGES.items():
         cost = float(run.res.cost) if run.res is not None else float("nan")
         if name in skip:
@@ -391,5 +449,3 @@ def run_stages(run: Run, skip: Iterable[str] = (), progress: Callable | None = N
             cost = float(run.res.initial_cost)
         reports.append(StageReport(name, time.perf_counter() - t0, cost, after,
                                    changed if changed is not None else "skipped: nothing to do"))
-    _reissue(run)  # the main solve's warnings when the prior stage was switched off
-    return reports
