@@ -169,7 +169,7 @@ def test_plots_are_drawn_beside_the_overlay_or_here(cut, tracked, tmp_path, monk
     started = []
     popen = subprocess.Popen
     monkeypatch.setattr(subprocess, "Popen", lambda cmd, **kw: started.append(cmd) or popen(cmd, **kw))
-    monkeypatch.setattr("pinrecon.windowed.usable_cpus", lambda: 2)
+    monkeypatch.setattr("pinrecon.processes.usable_cpus", lambda: 2)
     if how == "another process":  # and not here
         monkeypatch.setattr("pinrecon.viz.plot_result", lambda *a, **k: pytest.fail("plots drawn here"))
     else:
@@ -197,7 +197,7 @@ def test_an_overlay_that_fails_stops_the_plots_and_leaves_no_half_written_folder
     procs = []
     popen = subprocess.Popen
     monkeypatch.setattr(subprocess, "Popen", lambda cmd, **kw: procs.append(popen(cmd, **kw)) or procs[-1])
-    monkeypatch.setattr("pinrecon.windowed.usable_cpus", lambda: 2)
+    monkeypatch.setattr("pinrecon.processes.usable_cpus", lambda: 2)
 
     def fails(*a):
         time.sleep(0.3)  # the plots' process is under way (it takes seconds)
@@ -211,6 +211,36 @@ def test_an_overlay_that_fails_stops_the_plots_and_leaves_no_half_written_folder
     assert len(procs) == 1 and procs[0].returncode not in (None, 0)  # stopped, not finished
     plots = tmp_path / "out" / "plots"
     assert not plots.exists() or not any(plots.iterdir())
+
+def test_the_plots_process_starts_before_the_solve_and_ends_without_drawing_when_it_fails(cut, tracked, tmp_path,
+                                                                                           monkeypatch):
+    """The plots' process is started with the command (it imports while the detector runs) and
+    draws only once the result is saved: a solve that fails leaves it to end on its own, with
+    nothing drawn."""
+    import subprocess
+
+    import pinrecon.arguments
+    from pinrecon.cli import build_parser
+    from pinrecon.commands import video as video_module
+    from pinrecon.errors import InputError
+
+    procs = []
+    popen = subprocess.Popen
+    monkeypatch.setattr(subprocess, "Popen", lambda cmd, **kw: procs.append(popen(cmd, **kw)) or procs[-1])
+    monkeypatch.setattr("pinrecon.processes.usable_cpus", lambda: 2)
+
+    def fails(*a, **k):
+        assert len(procs) == 1 and procs[0].poll() is None  # started before the solve, waiting
+        raise InputError("no solution", file="tracks.json")
+
+    monkeypatch.setattr(pinrecon.arguments, "reconstruct_from_args", fails)
+    args = build_parser().parse_args(["video", str(cut), "--out", str(tmp_path / "out"), "--quiet"])
+    with warnings.catch_warnings(), pytest.raises(InputError, match="no solution"):
+        warnings.simplefilter("ignore")
+        video_module.run_video(args, tracked=[tracked])
+    assert len(procs) == 1 and procs[0].returncode == 0  # told nothing: it ended without drawing
+    assert not (tmp_path / "out" / "plots").exists()
+
 
 def test_overlay_plays_and_its_skeleton_lies_on_the_detections(video_run, openpose):
     _, out, _ = video_run

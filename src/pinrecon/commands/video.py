@@ -56,10 +56,18 @@ def _outputs(out: Path, videos: list[str]) -> dict:
 
 class _Plots:
     """The plots of a saved result, drawn by ``pinrecon plot`` in a new process (Python, not a
-    fork: the detector's and OpenCV's threads make forking unsafe) while the caller writes the
-    overlay; :meth:`result` waits for it and returns the files. Where that process cannot run
-    or fails (a worker of a pool, one CPU, several videos' tracks, an error), the plots are
-    drawn in :meth:`result` itself, which then raises any error as it would have."""
+    fork: the detector's and OpenCV's threads make forking unsafe). The process is started
+    with the command, before the detector, and imports pinrecon and matplotlib while the
+    detector leaves a CPU idle; it waits for :meth:`go` (the result saved) and draws while
+    the caller writes the overlay; :meth:`result` waits for it and returns the files. Where
+    that process cannot run or fails (a worker of a pool, one CPU, several videos' tracks, an
+    error), the plots are drawn in :meth:`result` itself, which then raises any error as it
+    would have."""
+
+    #: what the process runs: the imports, then ``pinrecon plot`` once told to go (nothing when
+    #: its input closes first: the command failed)
+    CODE = ("import sys; sys.path.append({here!r}); from pinrecon.cli import main; import pinrecon.viz.plots; "
+            "import matplotlib.pyplot; sys.exit(main() if sys.stdin.readline() == 'go\\n' else 0)")
 
     def __init__(self, result_path: Path, folder: Path, tracks_paths: list[Path]):
         import importlib.util
@@ -67,40 +75,56 @@ class _Plots:
         import os
         import subprocess
 
-        from ..windowed import usable_cpus
+        from ..processes import usable_cpus
 
         self.folder, self.proc, self.seconds, self.t0 = folder, None, None, time.perf_counter()
+        self.going = False
         if len(tracks_paths) != 1 or mp.parent_process() is not None or usable_cpus() < 2 \
                 or importlib.util.find_spec("matplotlib") is None:  # no viz extra: said by result()
             return
         here = str(Path(__file__).resolve().parents[2])  # where this pinrecon was imported from, searched last
-        code = f"import sys; sys.path.append({here!r}); from pinrecon.cli import main; sys.exit(main())"
         try:
-            self.proc = subprocess.Popen([sys.executable, "-c", code, "plot", str(result_path), "--out", str(folder),
-                                          "--tracks", str(tracks_paths[0]), "--no-animation"],
-                                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                                         env={**os.environ, "MPLBACKEND": "Agg"})
+            self.proc = subprocess.Popen([sys.executable, "-c", self.CODE.format(here=here), "plot", str(result_path),
+                                          "--out", str(folder), "--tracks", str(tracks_paths[0]), "--no-animation"],
+                                         stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                         text=True, env={**os.environ, "MPLBACKEND": "Agg"})
         except OSError:
             self.proc = None
 
+    def go(self) -> None:
+        """The result and tracks are saved: draw them."""
+        self.t0 = time.perf_counter()
+        if self.proc is None:
+            return
+        try:
+            self.proc.stdin.write("go\n")
+            self.proc.stdin.flush()  # communicate() closes it
+            self.going = True
+        except OSError:  # the process has ended: result() draws here
+            pass
+
     def stop(self) -> None:
-        """Stop the process (the caller failed): interrupted, it removes what it had staged
-        (``pinrecon plot`` writes its folder whole or not at all)."""
+        """Stop the process (the caller failed): before :meth:`go` it ends without drawing;
+        after, interrupted, it removes what it had staged (``pinrecon plot`` writes its folder
+        whole or not at all)."""
         import os
         import signal
         import subprocess
 
         if self.proc is None or self.proc.poll() is not None:
             return
-        self.proc.send_signal(signal.SIGINT if os.name == "posix" else signal.SIGTERM)
+        if self.going:
+            self.proc.send_signal(signal.SIGINT if os.name == "posix" else signal.SIGTERM)
         try:
-            self.proc.communicate(timeout=10)
+            self.proc.communicate(timeout=10)  # closes its input: a process not told to go ends
         except subprocess.TimeoutExpired:
             self.proc.kill()
             self.proc.communicate()
 
     def result(self, res, tracks) -> list[Path]:
-        if self.proc is not None:
+        if self.proc is not None and not self.going:
+            self.stop()
+        if self.proc is not None and self.going:
             out, _ = self.proc.communicate()
             self.seconds = time.perf_counter() - self.t0
             if self.proc.returncode == 0:
@@ -125,8 +149,7 @@ def run_video(args, tracked=None) -> dict:
     "frames": n, "seconds": s, "result": Result, "stages": {name: seconds}}``. ``tracked``:
     one :class:`~pinrecon.Tracks` per video from an earlier :func:`pinrecon.video.track_video`
     (a benchmark's cache), used instead of running the detector again."""
-    from ..arguments import reconstruct_from_args
-    from ..video import require_mediapipe, track_video, video_info
+    from ..video import require_mediapipe, video_info
 
     check_video_options(args)
     if tracked is None:
@@ -146,6 +169,20 @@ def run_video(args, tracked=None) -> dict:
     files = _outputs(out, args.videos)
     stages: dict[str, float] = {}
     t_start = time.perf_counter()
+    # started now, it imports while the detector runs; it draws once the result is saved
+    plots = None if args.no_plots else _Plots(files["result"], files["plots"], files["tracks"])
+    try:
+        return _run(args, infos, files, stages, t_start, plots, auto, tracked)
+    except BaseException:
+        if plots is not None:
+            plots.stop()
+        raise
+
+
+def _run(args, infos, files, stages, t_start, plots, auto, tracked) -> dict:
+    """:func:`run_video` from the detector on (``plots``: the :class:`_Plots` started, or None)."""
+    from ..arguments import reconstruct_from_args
+    from ..video import track_video
 
     tracks = []
     for i, (video, info) in enumerate(zip(args.videos, infos)):
@@ -182,16 +219,10 @@ def run_video(args, tracked=None) -> dict:
     written.append(export_result(files["result"], bvh=files["bvh"], csv=files["csv"], trc=files["trc"]))
     stages["exports"] = time.perf_counter() - t0
 
-    plots = None
-    if not args.no_plots:  # drawn by `pinrecon plot` in another process while the overlay is written here
-        plots = _Plots(files["result"], files["plots"], files["tracks"])
+    if plots is not None:  # drawn by `pinrecon plot` in the other process while the overlay is written here
+        plots.go()
     if not args.no_overlay:
-        try:
-            paths, stages["overlay"] = _write_overlays(res, args, files["overlay"], tracks)
-        except BaseException:
-            if plots is not None:
-                plots.stop()
-            raise
+        paths, stages["overlay"] = _write_overlays(res, args, files["overlay"], tracks)
         written.append(paths)
     if plots is not None:
         t0 = time.perf_counter()
