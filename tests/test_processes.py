@@ -64,11 +64,12 @@ def test_an_error_is_raised_in_the_caller():
 
 
 def _warns(x):
-    warnings.warn(f"careful with {x}", UserWarning, stacklevel=1)
+    for _ in range(3):
+        warnings.warn(f"careful with {x}", UserWarning, stacklevel=1)
     return x
 
 
-def test_the_childs_warnings_are_said_in_the_caller():
+def test_the_childs_warnings_are_said_in_the_caller_once_each():
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         assert Beside(_warns, 3, fork=True).result() == 3

@@ -142,6 +142,7 @@ def test_with_lifted_cues_the_priors_switch_solves_from_the_same_start(cued_walk
         real = module.initial_trajectory
         monkeypatch.setattr(module, "initial_trajectory", lambda *a, _real=real, **k: starts.append(1) or _real(*a, **k))
     monkeypatch.setattr(reconstruct_module, "switch_share", lambda *a: -1.0)  # every clip switches
+    monkeypatch.setattr(stages_module, "forkable", lambda: False)  # every start here, where it is counted
     measured = []
     real_remade = stages_module._remade
     monkeypatch.setattr(stages_module, "_remade",
@@ -155,13 +156,17 @@ def test_with_lifted_cues_the_priors_switch_solves_from_the_same_start(cued_walk
     assert pa_mpjpe(res.keypoints3d[:, kp], cued_walk[1]) < 40.0
 
 
-def test_with_lifted_cues_the_switched_solve_made_beside_is_the_one_made_after(cued_walk, human, monkeypatch):
-    """Where a CPU is spare, a child solves the switched prior's problem while the first solve
-    runs (both start from the same lifted start): the result is the one the prior stage solves
-    after the first solve, to the last digit, the stage's solve is not made again here, and the
-    callback hears the switched solve's iterations all the same. Ground truth: the same call with
-    no child."""
+@pytest.mark.parametrize("clip", ["cued_walk", "short_walk"])
+def test_the_switched_solve_made_beside_is_the_one_made_after(clip, human, monkeypatch, request):
+    """Where a CPU is spare, a child makes the switched prior's solve while the first solve runs
+    (with the tracks' cues both start from the same lifted start; without them pinrecon's lifter
+    joins and the child makes its start afresh): the result is the one the prior stage makes
+    after the first solve, to the last digit (its extras too: the start's reports, the measured
+    lengths), the stage's solve is not made again here, and the callback hears the switched
+    solve's iterations all the same. Ground truth: the same call with no child."""
     from pinrecon import stages as stages_module
+
+    walk = request.getfixturevalue(clip)
 
     reconstruct_module = sys.modules["pinrecon.reconstruct"]
     monkeypatch.setattr(reconstruct_module, "switch_share", lambda *a: -1.0)  # every clip switches
@@ -171,11 +176,17 @@ def test_with_lifted_cues_the_switched_solve_made_beside_is_the_one_made_after(c
         monkeypatch.setattr(stages_module, "forkable", lambda spare=spare: spare)
         calls, heard = [], []
         monkeypatch.setattr(stages_module, "solve", lambda *a, calls=calls, **k: calls.append(1) or real(*a, **k))
-        res = _solve(cued_walk, human, callback=lambda rep, heard=heard: heard.append(rep.iteration) and False)
+        res = _solve(walk, human, callback=lambda rep, heard=heard: heard.append(rep.iteration) and False)
         out[spare] = res, len(calls), heard
     (serial, n_serial, heard_serial), (beside, n_beside, heard_beside) = out[False], out[True]
     assert {s.name: s.changed for s in beside.stages}["prior"].startswith("pose prior human_pose -> human_pose_mixture")
     np.testing.assert_array_equal(beside.q, serial.q)
+    assert sorted(beside.extras) == sorted(serial.extras)
+    for key, value in serial.extras.items():
+        if key != "run_time_s":  # the clock's
+            np.testing.assert_array_equal(beside.extras[key], value, err_msg=key)
+    assert beside.calibration["lengths_from_tracks"] == serial.calibration["lengths_from_tracks"]
+    assert ("hypothesis_chains" in serial.extras) == (clip == "short_walk")  # the search's report, without cues
     assert beside.solve.cost == serial.solve.cost
     assert (n_serial, n_beside) == (2, 1)  # the first solve and the switched one; the first alone
     assert heard_beside == heard_serial

@@ -10,8 +10,9 @@ computed in the caller instead, so the answer is the same either way::
         down = profile_down(problem)
         both = up.result() + down
 
-The child's warnings are issued again in the caller when its value is taken; a value never
-taken (the block left early, :meth:`Beside.cancel`) stops the child.
+The child's warnings are issued again in the caller when its value is taken (each text from
+each place once); a value never taken (the block left early, :meth:`Beside.cancel`) stops the
+child. The value goes back through a pipe: it must pickle.
 """
 
 from __future__ import annotations
@@ -101,8 +102,11 @@ class Beside:
             self._reap()
         if got is None or got[0] != "value":
             return self.fn(*self.args)
-        for message, category, filename, lineno in got[2]:
-            warnings.warn_explicit(message, category, filename, lineno)
+        said = set()
+        for message, category, filename, lineno in got[2]:  # once per text and place, as Python's default
+            if (key := (category, str(message), filename, lineno)) not in said:
+                said.add(key)
+                warnings.warn_explicit(message, category, filename, lineno)
         return got[1]
 
     def cancel(self) -> None:

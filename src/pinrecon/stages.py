@@ -25,7 +25,8 @@ changed). A stage that has nothing to do returns ``None`` and is reported as ski
            unknown to the default, pinrecon's lifter joining as lifted-pose rows (``lifter="auto"``);
            not when the prior was adapted to keyframes (they decide the poses); with the tracks'
            own cues from the first solve's lifted start and lengths (it turns only the root,
-           which no pose prior sees)
+           which no pose prior sees); where a CPU is spare, the switched solve is made in a
+           child beside the first solve (:mod:`pinrecon.processes`) and taken if the clip switches
 ``yield``  the pose prior widened and re-centred where the data disagree with it
            (:mod:`pinrecon.prior_yield`), the clip solved again warm
 ``turns``  fast turns the solution holds a turn too few of, wound (warm re-solves)
@@ -34,7 +35,7 @@ changed). A stage that has nothing to do returns ``None`` and is reported as ski
 ``faults`` left/right swaps of the detector repaired (warm re-solve), outliers reported
 ``focal``  an auto camera's focal length carried down its cost valley (with a lifter's 3D, its
            solves at most :data:`FOCAL_ITERATIONS_LIFTED` iterations each, and
-           :data:`FOCAL_ROUNDS_LIFTED` move)
+           :data:`FOCAL_ROUNDS_LIFTED` move; the profile's longer focal lengths solved beside)
 ``feet``   feet on the ground: floor and contact rows, solved again warm
 =========  ======================================================================================
 
@@ -181,7 +182,7 @@ def _labels(run: Run) -> str | None:
     return f"left and right exchanged back on frames {'; '.join(said)}"
 
 
-def _solve(run: Run, solved: SolveResult | None = None) -> str:
+def _solve(run: Run) -> str:
     # with a broader prior in reserve, the warnings wait for the prior stage's verdict
     with warnings.catch_warnings(record=run.default_prior is not None) as caught:
         if run.default_prior is not None:
@@ -189,6 +190,8 @@ def _solve(run: Run, solved: SolveResult | None = None) -> str:
         auto = isinstance(run.start, str) and run.start == "auto"
         start = functools.partial(auto_start, lifted=False) if run.joined and auto else run.start
         what = "start and batch solve"
+        if run.started is None and not _lifted_start(run):
+            _switch_beside(run)  # the switched solve starts afresh (pinrecon's lifter joins): from now on
         if run.started is not None:  # the lifted start and lengths of before the prior's switch
             q0, run.problem = run.started[0], _remade(run.problem, run.started[1], run.inputs, run.mode)
         else:
@@ -204,8 +207,7 @@ def _solve(run: Run, solved: SolveResult | None = None) -> str:
             run.problem, run.conflict = adapt_prior(run.problem, q0, run.problem.g0, keyframes=True)
             if run.conflict is not None and run.conflict.conflicting:
                 what += f", pose prior adapted to the keyframes on {len(run.conflict.conflicting)} joint(s)"
-        run.res = solved if solved is not None else \
-            solve(run.problem, q0, run.options, run.callback, active=run.problem.active, g0=run.problem.g0)
+        run.res = solve(run.problem, q0, run.options, run.callback, active=run.problem.active, g0=run.problem.g0)
     run.caught = list(caught or [])
     return f"{what}: {run.res.iterations} iterations, {run.res.status}"
 
@@ -277,39 +279,65 @@ def _prior(run: Run) -> str | None:
     return f"pose prior {default} -> {switch[0]} ({why}), solved again"
 
 
-def _switch_to(run: Run, name: str, solved: SolveResult | None = None) -> SolveResult:
+@dataclass
+class _Made:
+    """What the prior stage needs of a switched solve made beside: its result, and what its
+    start left on the problem (the start's reports, the limb lengths measured from the tracks)."""
+
+    res: SolveResult
+    reports: dict
+    lengths: dict | None
+    measured: dict | None
+
+
+def _switch_to(run: Run, name: str, made: _Made | None = None) -> None:
     """The prior stage's switch to the broader prior ``name`` on ``run``: its inputs, problem
-    and start made again and solved (or ``solved``, the same solve made beside); ``run.res``."""
+    and start made again and solved, or the problem made again and ``made``'s solve taken."""
     run.inputs["weights"] = replace(run.inputs["weights"], pose_prior_model=name)
     if run.lifter is not None:  # poses the default prior does not know: the lifter's cues join
         given = getattr(run.inputs["tracks"], "lifted", None) is not None
         run.inputs["tracks"] = run.lifter(run.inputs["tracks"])
         run.joined = not given and getattr(run.inputs["tracks"], "lifted", None) is not None
-    run.problem = make_problem(**run.inputs, calibrate=run.mode)
+    if made is not None and made.lengths:
+        run.problem = with_lengths(run.inputs, run.mode, made.lengths, made.measured, made.reports)
+    else:
+        run.problem = make_problem(**run.inputs, calibrate=run.mode)
     if run.started is not None and not _lifted_start(run):
         run.started = None  # the lifter joined: its start now
+    if made is not None:
+        if not made.lengths:
+            run.problem.reports.update(made.reports)
+        run.res, run.caught = made.res, []
+        return
     default, run.default_prior = run.default_prior, None
-    _solve(run, solved)
+    _solve(run)
     run.default_prior = default
-    return run.res
+
+
+def _made_beside(run: Run, name: str) -> _Made:
+    """:func:`_switch_to` in the child (whose copy of ``run`` is its own), as :class:`_Made`."""
+    _switch_to(run, name)
+    p = run.problem
+    return _Made(run.res, dict(p.reports), getattr(p, "lengths_from_tracks", None), getattr(p, "measured_lengths", None))
 
 
 def _switch_beside(run: Run) -> None:
-    """With the tracks' own cues the switched solve starts where the first does (the lifted start
-    and lengths, :func:`_remade`): where a CPU is spare, a child solves it beside the first solve,
-    so that a switch costs no time of its own (``run.beside``; the child's copy of ``run`` is its
-    own). The child's solve reports its iterations to nobody; :func:`_taken` replays them."""
+    """The prior stage's switched solve does not depend on the first solve (with the tracks' own
+    cues it starts from the same lifted start and lengths, :func:`_remade`; without them
+    pinrecon's lifter joins and its start is made afresh): where a CPU is spare, a child makes it
+    while the first solve runs, so that a switch costs no time of its own (``run.beside``). The
+    child's solve reports its iterations to nobody; :func:`_taken` replays them."""
     broader = BROADER_PRIOR.get(run.default_prior) if run.default_prior is not None else None
     if broader is None or not run.spare_cpu or run.yield_at_start or run.beside is not None:
         return
     callback, run.callback = run.callback, None
     try:
-        run.beside = (broader, Beside(_switch_to, run, broader))
+        run.beside = (broader, Beside(_made_beside, run, broader, fork=True))
     finally:
         run.callback = callback
 
 
-def _taken(run: Run, beside, name: str) -> SolveResult | None:
+def _taken(run: Run, beside, name: str) -> _Made | None:
     """The switched solve made beside (:func:`_switch_beside`) for the prior ``name``, its
     iterations replayed to the callback; None when there is none, or the callback stops it
     (then it is solved here, where the callback is heard)."""
@@ -317,10 +345,10 @@ def _taken(run: Run, beside, name: str) -> SolveResult | None:
         if beside is not None:
             beside[1].cancel()
         return None
-    res = beside[1].result()
-    if run.callback is not None and any(run.callback(rep) for rep in res.report):
+    made = beside[1].result()
+    if run.callback is not None and any(run.callback(rep) for rep in made.res.report):
         return None
-    return res
+    return made
 
 
 def _degenerate_focal(run: Run) -> float | None:
