@@ -128,7 +128,7 @@ def test_the_last_move_may_report_from_the_profile_already_solved(short_walk, mo
     problem, res0, auto = seen["problem"], seen["res"], seen["auto"]
     calls, real = [], solver.solve
     monkeypatch.setattr(solver, "solve", lambda *a, **k: calls.append(1) or real(*a, **k))
-    monkeypatch.setattr("pinrecon.processes.forkable", lambda: False)  # every solve here, where it is counted
+    monkeypatch.setattr("pinrecon.starts.camera_auto.forkable", lambda *a: False)  # every solve here, where it is counted
     out = {}
     for final in (True, False):
         calls.clear()
@@ -167,7 +167,7 @@ def test_the_longer_focal_lengths_are_profiled_beside_with_the_same_points(short
     monkeypatch.setattr(solver, "solve", lambda *a, **k: calls.append(1) or real(*a, **k))
     out = {}
     for fork in (False, True):
-        monkeypatch.setattr("pinrecon.processes.forkable", lambda fork=fork: fork)
+        monkeypatch.setattr("pinrecon.starts.camera_auto.forkable", lambda *a, fork=fork: fork)
         calls.clear()
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")

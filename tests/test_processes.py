@@ -86,5 +86,11 @@ def test_a_value_not_wanted_stops_the_child():
         job.result()
 
 
+def test_a_clip_longer_than_a_window_is_not_solved_twice_at_once(monkeypatch):
+    monkeypatch.setattr(processes, "usable_cpus", lambda: 2)
+    assert forkable() and forkable(processes.BESIDE_FRAMES)
+    assert not forkable(processes.BESIDE_FRAMES + 1)
+
+
 def test_usable_cpus_is_the_affinity():
     assert 1 <= usable_cpus() <= (os.cpu_count() or 1)

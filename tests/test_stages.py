@@ -142,7 +142,7 @@ def test_with_lifted_cues_the_priors_switch_solves_from_the_same_start(cued_walk
         real = module.initial_trajectory
         monkeypatch.setattr(module, "initial_trajectory", lambda *a, _real=real, **k: starts.append(1) or _real(*a, **k))
     monkeypatch.setattr(reconstruct_module, "switch_share", lambda *a: -1.0)  # every clip switches
-    monkeypatch.setattr(stages_module, "forkable", lambda: False)  # every start here, where it is counted
+    monkeypatch.setattr(stages_module, "forkable", lambda *a: False)  # every start here, where it is counted
     measured = []
     real_remade = stages_module._remade
     monkeypatch.setattr(stages_module, "_remade",
@@ -173,7 +173,7 @@ def test_the_switched_solve_made_beside_is_the_one_made_after(clip, human, monke
     real = stages_module.solve
     out = {}
     for spare in (False, True):
-        monkeypatch.setattr(stages_module, "forkable", lambda spare=spare: spare)
+        monkeypatch.setattr(stages_module, "forkable", lambda *a, spare=spare: spare)
         calls, heard = [], []
         monkeypatch.setattr(stages_module, "solve", lambda *a, calls=calls, **k: calls.append(1) or real(*a, **k))
         res = _solve(walk, human, callback=lambda rep, heard=heard: heard.append(rep.iteration) and False)
@@ -202,7 +202,7 @@ def test_a_callback_that_stops_the_switched_solve_is_obeyed_beside(cued_walk, hu
     monkeypatch.setattr(reconstruct_module, "switch_share", lambda *a: -1.0)
     out = {}
     for spare in (False, True):
-        monkeypatch.setattr(stages_module, "forkable", lambda spare=spare: spare)
+        monkeypatch.setattr(stages_module, "forkable", lambda *a, spare=spare: spare)
         stage, stopped = [], []
         res = _solve(cued_walk, human, progress=stage.append,
                      callback=lambda rep, stage=stage, stopped=stopped: stage[-1] == "prior" and not stopped.append(1))

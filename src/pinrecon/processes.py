@@ -26,7 +26,7 @@ from typing import Self
 
 from .errors import InputError
 
-__all__ = ["Beside", "forkable", "n_processes", "usable_cpus"]
+__all__ = ["BESIDE_FRAMES", "Beside", "forkable", "n_processes", "usable_cpus"]
 
 
 def usable_cpus() -> int:
@@ -47,13 +47,19 @@ def n_processes(n_jobs, at_most: int, cpus: int) -> int:
     return max(1, min(at_most, cpus if n_jobs == -1 else n_jobs))
 
 
-def forkable() -> bool:
+#: a solve made beside another holds as much memory as it: only for clips up to this many
+#: frames (a long clip's window; a window's worker peaks at about 650 MB, bench_long_clip)
+BESIDE_FRAMES = 2000
+
+
+def forkable(frames: int | None = None) -> bool:
     """Whether work may go to a child forked beside this process: the platform forks (a child
     started afresh would import the caller's script again, which a script without a
-    ``__main__`` guard does not survive), this process may use two CPUs or more, and it is not
-    itself a worker (``pinrecon batch``'s, Dask's: their pool already uses the cores)."""
+    ``__main__`` guard does not survive), this process may use two CPUs or more, it is not
+    itself a worker (``pinrecon batch``'s, Dask's: their pool already uses the cores), and the
+    clip has at most :data:`BESIDE_FRAMES` ``frames``."""
     return ("fork" in multiprocessing.get_all_start_methods() and usable_cpus() >= 2
-            and multiprocessing.parent_process() is None)
+            and multiprocessing.parent_process() is None and (frames is None or frames <= BESIDE_FRAMES))
 
 
 def _child(conn, fn: Callable, args: tuple) -> None:

@@ -451,7 +451,7 @@ def run_stages(run: Run, skip: Iterable[str] = (), progress: Callable | None = N
     """Run :data:`STAGES` in order on ``run`` (all but those in ``skip``); ``progress(name)``
     is called as each stage starts. Returns one :class:`StageReport` per stage."""
     reports = []
-    run.spare_cpu = "prior" not in skip and forkable()
+    run.spare_cpu = "prior" not in skip and forkable(run.problem.n_frames)
     try:
         _run_each(run, skip, progress, reports)
     finally:

@@ -56,7 +56,7 @@ import numpy as np
 
 from ..cameras import Orthographic, Perspective, look_at_rotation
 from ..errors import InputError
-from ..processes import Beside
+from ..processes import Beside, forkable
 from .camera_keyframes import (
     PROFILE_THRESHOLD,
     camera_from_keyframes,
@@ -414,7 +414,7 @@ def _profile_solves(problem, res, steps, options):
         return None
     intr, g_fit = of
     first = [(intr.value(g_fit), float(res.cost), np.asarray(res.x, float), g_fit)]
-    with Beside(_profile_side, problem, res, intr, g_fit, steps, options, 1.0) as longer:
+    with Beside(_profile_side, problem, res, intr, g_fit, steps, options, 1.0, fork=forkable(problem.n_frames)) as longer:
         shorter = _profile_side(problem, res, intr, g_fit, steps, options, -1.0)
         return first + longer.result() + shorter
 
