@@ -168,6 +168,51 @@ def test_a_clip_solved_in_windows_is_judged_by_the_default_too(random_motion):
     assert float(res.extras["prior_distance_limit"]) == float(prior.quantiles["99"])
 
 
+def test_a_clip_in_windows_judges_its_prior_on_the_leading_stretch(random_motion, monkeypatch):
+    """The pose prior is judged on the leading stretch's poses (where the globals are solved)
+    before any window: a clip the default does not know is solved in windows once, with the
+    broader prior, not first with the default; its share is the stretch's, solved by hand."""
+    import sys
+
+    from pinrecon.problem import make_problem
+
+    reconstruct_module = sys.modules["pinrecon.reconstruct"]
+    passes, real = [], reconstruct_module.solve_windowed
+    monkeypatch.setattr(reconstruct_module, "solve_windowed",
+                        lambda problem, *a, **k: passes.append(problem.weights.pose_prior_model) or real(problem, *a, **k))
+    fig, tracks, cam, keys = random_motion
+    res = _solve(fig, tracks, cam, keys, window=20)
+    assert passes == ["human_pose_mixture"]
+    stretch = make_problem(fig, tracks, cam, keys, calibrate="none", weights=Weights(pose_prior_model="human_pose"))
+    first = solve(stretch, build_problem(fig, tracks, cam, keys, calibrate="none").q0, active=stretch.active)
+    prior = next(r for r in stretch.rows if isinstance(r, PosePrior))  # the stretch is the whole of these 40 frames
+    share = float(np.mean(prior.distances(fig.normalize(first.x)) > prior.quantiles["99"]))
+    assert share > SWITCH_SHARE and float(res.extras["prior_default_unfamiliar"]) == pytest.approx(share, abs=0.05)
+    assert "of the leading stretch's poses unfamiliar" in res.stages[0].changed
+
+
+def test_a_walk_in_windows_the_default_knows_solves_its_leading_stretch_once(monkeypatch):
+    """Judged familiar, the leading stretch's solve (with the limb lengths as globals) is the one
+    the windows hold the lengths from: solved once, not again by the windows."""
+    from pinrecon import windowed
+
+    fig_c, q, fps = bundled_motion("walk")
+    q = q[:120:4]
+    cam = perspective_side_camera(q, 45.0)
+    tracks, P = coco_body_tracks(fig_c, q, cam, fps=fps / 4)
+    keys = keyframes_from_points([0, len(q) - 1], P, list(tracks.names), 0.05)
+    leads, real = [], windowed.solve
+    monkeypatch.setattr(windowed, "solve", lambda problem, *a, **k: leads.append(problem.n_frames == len(q))
+                        or real(problem, *a, **k))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = pr.reconstruct(pr.Figure.human(), tracks, cam, keys, calibrate="lengths", floor="none", window=12,
+                             lifter="none")
+    assert "prior_model" not in res.extras and "pose prior" not in res.stages[0].changed
+    assert sum(leads) == 1  # the stretch (here the whole clip) once; the windows are shorter
+    assert res.stages[0].name == "windowed" and "windowed (4 windows" in res.solve.status
+
+
 @pytest.mark.slow
 def test_a_degenerate_focal_length_solves_again_with_the_broader_prior_and_the_lifter(tmp_path):
     """The fast spin (CMU 05_11, 100 frames) as a detector sees it, one camera, the auto camera, no

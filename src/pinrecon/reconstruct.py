@@ -64,7 +64,7 @@ from .unfamiliar import (
     switch_share,
     unfamiliar_poses,
 )
-from .windowed import solve_windowed, windowed_length
+from .windowed import solve_lead, solve_windowed, windowed_length
 
 __all__ = [
     "reconstruct",
@@ -378,8 +378,9 @@ def _result(run: Run, reports) -> Result:
 def _reconstruct_windowed(problem, inputs, mode, calibrate, auto, start, init, span, default, limit, options,
                           callback, lift=None, adapt=False) -> Result:
     """:func:`reconstruct` of a long clip in windows of ``span`` frames (:mod:`pinrecon.windowed`),
-    solved again with the broader prior when the default does not know the clip; ``adapt``: each
-    window's prior adapted to its keyframes instead (the stage ``yield``)."""
+    with the broader prior when the default does not know the poses of its leading stretch (solved
+    first, and held by the windows when the clip keeps the default); ``adapt``: each window's prior
+    adapted to its keyframes instead (the stage ``yield``)."""
     import time
 
     t0 = time.perf_counter()
@@ -394,10 +395,11 @@ def _reconstruct_windowed(problem, inputs, mode, calibrate, auto, start, init, s
         problem = with_lengths(inputs, mode, *found) if found else make_problem(**inputs, calibrate=mode)
     # the tracks' own lifted cues decide the limbs' reflections: no mirror stage (as pinrecon.stages)
     mirrors = not has_lifted(problem)
-    res = solve_windowed(problem, start, options, callback, window=span, mirrors=mirrors and _mirrors(problem, init),
-                         adapt_prior=adapt, n_jobs=-1)
-    result = _package(problem, res, auto, identify=False)
-    switch = None if default is None or adapt else broader_prior(default, "auto", result.extras, share=limit)
+    lead, switch = None, None
+    if default is not None and not adapt:  # the prior judged on the leading stretch's poses, as its globals
+        lead = solve_lead(problem, start, options, callback, window=span, judge=True)
+        unfamiliar = unfamiliar_poses(lead.problem, lead.problem.figure.normalize(lead.x))
+        switch = broader_prior(default, "auto", {} if unfamiliar is None else unfamiliar.to_extras(), share=limit)
     if switch is not None:
         weights = replace(inputs["weights"], pose_prior_model=switch[0])
         if lift is not None:  # poses the default prior does not know: the lifter's cues join
@@ -408,7 +410,12 @@ def _reconstruct_windowed(problem, inputs, mode, calibrate, auto, start, init, s
                              n_jobs=-1)
         result = _package(problem, res, auto, identify=False, judge=default)
         result.extras.update(switch_extras(*switch))
-    changed = f"windows of {span} frames" + (f", pose prior -> {switch[0]}" if switch else "")
+    else:
+        res = solve_windowed(problem, start, options, callback, window=span, mirrors=mirrors and _mirrors(problem, init),
+                             adapt_prior=adapt, n_jobs=-1, lead=lead)
+        result = _package(problem, res, auto, identify=False)
+    changed = f"windows of {span} frames" + (
+        f", pose prior -> {switch[0]} ({100 * switch[1]:.0f} % of the leading stretch's poses unfamiliar)" if switch else "")
     result.stages = [StageReport("windowed", time.perf_counter() - t0, float(res.initial_cost), float(res.cost),
                                  changed)]
     return result

@@ -16,7 +16,8 @@ by window, in order:
   geodesically (``pin.interpolate``), the weight of the new one going from 0 to 1 over
   the middle half of the overlap, away from both windows' ends where a window knows least;
 * global unknowns (a calibration) are solved once on a leading stretch of the clip
-  (:data:`CALIBRATION_FRAMES`, or the first window if longer), then held in every window
+  (:data:`CALIBRATION_FRAMES`, or the first window if longer; :func:`solve_lead`, whose poses
+  :func:`pinrecon.reconstruct` also judges the pose prior on), then held in every window
   (:func:`pinrecon.reconstruct` measures one camera's limb lengths from the tracks of its
   first frames before, as the batch solve does on the clip);
   which of the fitted lengths that stretch's data fix
@@ -76,7 +77,9 @@ __all__ = [
     "AUTO_WINDOW_FRAMES",
     "DEFAULT_OVERLAP",
     "DEFAULT_WINDOW",
+    "Lead",
     "WindowReport",
+    "solve_lead",
     "solve_windowed",
     "window_plan",
     "windowed_length",
@@ -139,10 +142,61 @@ def window_plan(n_frames: int, window: int, overlap: int, unit: int = 1) -> list
     return [(a, min(a + span, last)) if k < count - 1 else (starts[-1], last) for k, a in enumerate(starts)]
 
 
+@dataclass
+class Lead:
+    """The leading stretch of a clip solved in windows (the module docstring): its problem
+    (None when it has nothing to solve), its solution ``x``, the globals solved on it and what
+    its data fix of them, the pose prior adapted to its keyframes (held in every window)."""
+
+    problem: object = None
+    x: np.ndarray | None = None
+    g_solved: np.ndarray | None = None
+    identified: object = None
+    held_prior: object = None
+
+
+def _plan(problem, window: int, overlap: int | None):
+    """``(plan, overlap, unit)`` of :func:`solve_windowed`."""
+    window = int(window)
+    if window < 3:
+        raise InputError(f"a window needs at least 3 frames, got {window}", field="window")
+    overlap = min(DEFAULT_OVERLAP if overlap is None else int(overlap), window // 3)
+    unit = math.lcm(*[int(v.factor) for v in problem.views])
+    return window_plan(problem.n_frames, max(window, 2 * unit + 1), overlap, unit), overlap, unit
+
+
+def solve_lead(problem, start="auto", options: SolverOptions | None = None, callback=None, *,
+               window: int = DEFAULT_WINDOW, overlap: int | None = None, adapt_prior: bool = False,
+               judge: bool = False) -> Lead:
+    """The leading stretch of :func:`solve_windowed` (its first :data:`CALIBRATION_FRAMES`
+    frames, or the first window if longer): started, its pose prior adapted (``adapt_prior``),
+    and solved with its globals free where ``problem`` has globals or ``judge`` asks for its
+    poses (:func:`pinrecon.reconstruct` judges the pose prior on them). An empty :class:`Lead`
+    when there is nothing to do."""
+    plan, _, unit = _plan(problem, window, overlap)
+    if problem.g0 is None and not adapt_prior and not judge:
+        return Lead()
+    T = problem.n_frames
+    stretch = (min(T - 1, max(plan[0][1], CALIBRATION_FRAMES - 1)) // unit) * unit
+    wp = _window_problem(problem, 0, stretch, free_globals=True, g_held=None)
+    q0 = initial_trajectory(wp, start) if isinstance(start, str) else np.array(np.asarray(start, float)[: stretch + 1])
+    lead = Lead(wp)
+    if adapt_prior:  # the pose prior adapted to it, then held in every window
+        wp = lead.problem = adapt_to_keyframes(wp, q0, wp.g0, keyframes=True)[0]
+        lead.held_prior = pose_prior_row(wp) if decided_by_keyframes(wp) else None
+    if problem.g0 is not None or judge:  # the globals solved on it, then held in every window
+        res = solve(wp, q0, options, callback, active=wp.active, g0=wp.g0)
+        lead.x = res.x
+        if problem.g0 is not None:
+            lead.g_solved = res.g if res.g is not None else wp.g0
+            lead.identified = proportions_identifiability(wp, res.x, lead.g_solved)  # what this stretch's data fix
+    return lead
+
+
 def solve_windowed(problem, start="auto", options: SolverOptions | None = None, callback=None, *,
                    window: int = DEFAULT_WINDOW, overlap: int | None = None, faults: bool = True,
                    turns: bool = True, mirrors: bool = False, adapt_prior: bool = False,
-                   n_jobs: int | None = None) -> SolveResult:
+                   n_jobs: int | None = None, lead: Lead | None = None) -> SolveResult:
     """Solve ``problem`` (a :class:`~pinrecon.problem.ReconstructionProblem` from
     :func:`~pinrecon.problem.make_problem`) window by window; see the module docstring.
 
@@ -158,6 +212,7 @@ def solve_windowed(problem, start="auto", options: SolverOptions | None = None, 
     the whole problem's cost there, the iterations of all windows, and the globals
     solved on the leading stretch. ``n_jobs``: worker processes for the windows (scikit-learn's
     convention: ``None`` or 1 here, one after another; -1 every CPU; at most one per window).
+    ``lead``: the leading stretch already solved (:func:`solve_lead` of the same arguments).
     """
     t0 = time.perf_counter()
     views = problem.views
@@ -165,26 +220,13 @@ def solve_windowed(problem, start="auto", options: SolverOptions | None = None, 
         raise InputError("the windowed solve needs a problem built from tracks (make_problem)", field="window")
     T = problem.n_frames
     window = int(window)
-    if window < 3:
-        raise InputError(f"a window needs at least 3 frames, got {window}", field="window")
-    overlap = min(DEFAULT_OVERLAP if overlap is None else int(overlap), window // 3)
-    unit = math.lcm(*[int(v.factor) for v in views])
-    plan = window_plan(T, max(window, 2 * unit + 1), overlap, unit)
+    plan, overlap, _ = _plan(problem, window, overlap)
     X = np.empty((T, problem.figure.nq))
-    g_solved = identified = None
-    held_prior = None
-    if problem.g0 is not None or adapt_prior:  # the leading stretch: its start, then ...
-        stretch = (min(T - 1, max(plan[0][1], CALIBRATION_FRAMES - 1)) // unit) * unit
-        wp = _window_problem(problem, 0, stretch, free_globals=True, g_held=None)
-        q0 = initial_trajectory(wp, start) if isinstance(start, str) else np.array(np.asarray(start, float)[: stretch + 1])
-    if adapt_prior:  # ... the pose prior adapted to it, then held in every window
-        wp = adapt_to_keyframes(wp, q0, wp.g0, keyframes=True)[0]
-        held_prior = pose_prior_row(wp) if decided_by_keyframes(wp) else None
-    if problem.g0 is not None:  # ... the globals solved on it, then held in every window
-        res = solve(wp, q0, options, callback, active=wp.active, g0=wp.g0)
-        g_solved = res.g if res.g is not None else wp.g0
-        identified = proportions_identifiability(wp, res.x, g_solved)  # what this stretch's data fix
-        for key, rep in wp.reports.items():  # e.g. the hypotheses start's report
+    if lead is None:
+        lead = solve_lead(problem, start, options, callback, window=window, overlap=overlap, adapt_prior=adapt_prior)
+    g_solved, identified, held_prior = lead.g_solved, lead.identified, lead.held_prior
+    if g_solved is not None:
+        for key, rep in lead.problem.reports.items():  # e.g. the hypotheses start's report
             problem.reports.setdefault(key, rep)
     reports, iterations, statuses, fault_reports, tried, mirrored = [], 0, [], [[] for _ in views], {}, {}
     user_window = getattr(callback, "window", None)
