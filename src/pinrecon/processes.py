@@ -20,6 +20,7 @@ from __future__ import annotations
 import contextlib
 import multiprocessing
 import os
+import sys
 import warnings
 from collections.abc import Callable
 from typing import Self
@@ -53,13 +54,14 @@ BESIDE_FRAMES = 2000
 
 
 def forkable(frames: int | None = None) -> bool:
-    """Whether work may go to a child forked beside this process: the platform forks (a child
-    started afresh would import the caller's script again, which a script without a
-    ``__main__`` guard does not survive), this process may use two CPUs or more, it is not
-    itself a worker (``pinrecon batch``'s, Dask's: their pool already uses the cores), and the
-    clip has at most :data:`BESIDE_FRAMES` ``frames``."""
-    return ("fork" in multiprocessing.get_all_start_methods() and usable_cpus() >= 2
-            and multiprocessing.parent_process() is None and (frames is None or frames <= BESIDE_FRAMES))
+    """Whether work may go to a child forked beside this process: on Linux (a child started
+    afresh would import the caller's script again, which a script without a ``__main__`` guard
+    does not survive; macOS's system libraries are not safe to fork), this process may use two
+    CPUs or more, it is not itself a worker (``pinrecon batch``'s, Dask's: their pool already
+    uses the cores), and the clip has at most :data:`BESIDE_FRAMES` ``frames``."""
+    return (sys.platform.startswith("linux") and "fork" in multiprocessing.get_all_start_methods()
+            and usable_cpus() >= 2 and multiprocessing.parent_process() is None
+            and (frames is None or frames <= BESIDE_FRAMES))
 
 
 def _child(conn, fn: Callable, args: tuple) -> None:
