@@ -7,6 +7,7 @@ landmarks must lie near them; the overlay video's drawn keypoints must lie on th
 
 from __future__ import annotations
 
+import signal
 import sys
 import time
 import warnings
@@ -205,9 +206,13 @@ def test_an_overlay_that_fails_stops_the_plots_and_leaves_no_half_written_folder
 
     monkeypatch.setattr(video_module, "_write_overlays", fails)
     args = build_parser().parse_args(["video", str(cut), "--out", str(tmp_path / "out"), "--quiet"])
-    with warnings.catch_warnings(), pytest.raises(InputError, match="disk is full"):
-        warnings.simplefilter("ignore")
-        video_module.run_video(args, tracked=[tracked])
+    ignored = signal.signal(signal.SIGINT, signal.SIG_IGN)  # as a test runner's worker may: the child inherits it
+    try:
+        with warnings.catch_warnings(), pytest.raises(InputError, match="disk is full"):
+            warnings.simplefilter("ignore")
+            video_module.run_video(args, tracked=[tracked])
+    finally:
+        signal.signal(signal.SIGINT, ignored)
     assert len(procs) == 1 and procs[0].returncode not in (None, 0)  # stopped, not finished
     plots = tmp_path / "out" / "plots"
     assert not plots.exists() or not any(plots.iterdir())

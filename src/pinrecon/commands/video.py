@@ -66,7 +66,8 @@ class _Plots:
 
     #: what the process runs: the imports, then ``pinrecon plot`` once told to go (nothing when
     #: its input closes first: the command failed)
-    CODE = ("import sys; sys.path.append({here!r}); from pinrecon.cli import main; import pinrecon.viz.plots; "
+    CODE = ("import signal, sys; signal.signal(signal.SIGINT, signal.default_int_handler); "  # heard even if ignored here
+            "sys.path.append({here!r}); from pinrecon.cli import main; import pinrecon.viz.plots; "
             "import matplotlib.pyplot; sys.exit(main() if sys.stdin.readline() == 'go\\n' else 0)")
 
     def __init__(self, result_path: Path, folder: Path, tracks_paths: list[Path]):
