@@ -13,6 +13,11 @@ from threadpoolctl import threadpool_limits
 # OpenBLAS threads that spin-wait on a busy 2-core machine made solves 30x slower here.
 _BLAS_LIMIT = threadpool_limits(limits=1, user_api="blas")
 
+# Under ``pytest -n`` the workers already use the cores: no solve forks a child beside it
+# (pinrecon.processes.forkable); the tests of that path ask for the child themselves.
+if os.environ.get("PYTEST_XDIST_WORKER"):
+    os.environ.setdefault("PINRECON_BESIDE", "0")
+
 # Hypothesis profiles: "ci" (the default: few, fixed examples, so the property tests take
 # well under two minutes and every run tries the same cases) and "long" (a deeper search).
 # Choose with PINRECON_HYPOTHESIS_PROFILE=long.

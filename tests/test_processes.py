@@ -88,8 +88,11 @@ def test_a_value_not_wanted_stops_the_child():
 
 def test_a_clip_longer_than_a_window_is_not_solved_twice_at_once(monkeypatch):
     monkeypatch.setattr(processes, "usable_cpus", lambda: 2)
+    monkeypatch.delenv("PINRECON_BESIDE", raising=False)
     assert forkable() and forkable(processes.BESIDE_FRAMES)
     assert not forkable(processes.BESIDE_FRAMES + 1)
+    monkeypatch.setenv("PINRECON_BESIDE", "0")  # the caller's processes use the cores
+    assert not forkable()
 
 
 def test_usable_cpus_is_the_affinity():

@@ -58,10 +58,12 @@ def forkable(frames: int | None = None) -> bool:
     afresh would import the caller's script again, which a script without a ``__main__`` guard
     does not survive; macOS's system libraries are not safe to fork), this process may use two
     CPUs or more, it is not itself a worker (``pinrecon batch``'s, Dask's: their pool already
-    uses the cores), and the clip has at most :data:`BESIDE_FRAMES` ``frames``."""
+    uses the cores), the clip has at most :data:`BESIDE_FRAMES` ``frames``, and the environment
+    does not say ``PINRECON_BESIDE=0`` (set it where the caller's own processes already use the
+    cores: pinrecon's test configuration does under ``pytest -n``)."""
     return (sys.platform.startswith("linux") and "fork" in multiprocessing.get_all_start_methods()
             and usable_cpus() >= 2 and multiprocessing.parent_process() is None
-            and (frames is None or frames <= BESIDE_FRAMES))
+            and (frames is None or frames <= BESIDE_FRAMES) and os.environ.get("PINRECON_BESIDE", "1") != "0")
 
 
 def _child(conn, fn: Callable, args: tuple) -> None:
