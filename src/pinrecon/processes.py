@@ -27,7 +27,7 @@ from typing import Self
 
 from .errors import InputError
 
-__all__ = ["BESIDE_FRAMES", "Beside", "forkable", "n_processes", "usable_cpus"]
+__all__ = ["BESIDE_FRAMES", "Beside", "forkable", "may_fork", "n_processes", "usable_cpus"]
 
 
 def usable_cpus() -> int:
@@ -53,16 +53,21 @@ def n_processes(n_jobs, at_most: int, cpus: int) -> int:
 BESIDE_FRAMES = 2000
 
 
+def may_fork() -> bool:
+    """Whether this process may fork workers: the platform forks (a child started afresh would
+    import the caller's script again, which a script without a ``__main__`` guard does not
+    survive), and it is not itself a worker (``pinrecon batch``'s, Dask's: their pool already
+    uses the cores)."""
+    return "fork" in multiprocessing.get_all_start_methods() and multiprocessing.parent_process() is None
+
+
 def forkable(frames: int | None = None) -> bool:
-    """Whether work may go to a child forked beside this process: on Linux (a child started
-    afresh would import the caller's script again, which a script without a ``__main__`` guard
-    does not survive; macOS's system libraries are not safe to fork), this process may use two
-    CPUs or more, it is not itself a worker (``pinrecon batch``'s, Dask's: their pool already
-    uses the cores), the clip has at most :data:`BESIDE_FRAMES` ``frames``, and the environment
-    does not say ``PINRECON_BESIDE=0`` (set it where the caller's own processes already use the
-    cores: pinrecon's test configuration does under ``pytest -n``)."""
-    return (sys.platform.startswith("linux") and "fork" in multiprocessing.get_all_start_methods()
-            and usable_cpus() >= 2 and multiprocessing.parent_process() is None
+    """Whether work may go to a child forked beside this process: :func:`may_fork`, on Linux
+    (macOS's system libraries are not safe to fork), this process may use two CPUs or more, the
+    clip has at most :data:`BESIDE_FRAMES` ``frames``, and the environment does not say
+    ``PINRECON_BESIDE=0`` (set it where the caller's own processes already use the cores:
+    pinrecon's test configuration does under ``pytest -n``)."""
+    return (sys.platform.startswith("linux") and may_fork() and usable_cpus() >= 2
             and (frames is None or frames <= BESIDE_FRAMES) and os.environ.get("PINRECON_BESIDE", "1") != "0")
 
 

@@ -406,14 +406,12 @@ def _reconstruct_windowed(problem, inputs, mode, calibrate, auto, start, init, s
             inputs = {**inputs, "tracks": lift(inputs["tracks"])}
         inputs = {**inputs, "weights": weights}
         problem = with_lengths(inputs, mode, *found) if found else make_problem(**inputs, calibrate=mode)
-        res = solve_windowed(problem, start, options, callback, window=span, mirrors=mirrors and _mirrors(problem, init),
-                             n_jobs=-1)
-        result = _package(problem, res, auto, identify=False, judge=default)
+        lead = None  # the broader prior's own stretch
+    res = solve_windowed(problem, start, options, callback, window=span, mirrors=mirrors and _mirrors(problem, init),
+                         adapt_prior=adapt, n_jobs=-1, lead=lead)
+    result = _package(problem, res, auto, identify=False, judge=default if switch else None)
+    if switch is not None:
         result.extras.update(switch_extras(*switch))
-    else:
-        res = solve_windowed(problem, start, options, callback, window=span, mirrors=mirrors and _mirrors(problem, init),
-                             adapt_prior=adapt, n_jobs=-1, lead=lead)
-        result = _package(problem, res, auto, identify=False)
     changed = f"windows of {span} frames" + (
         f", pose prior -> {switch[0]} ({100 * switch[1]:.0f} % of the leading stretch's poses unfamiliar)" if switch else "")
     result.stages = [StageReport("windowed", time.perf_counter() - t0, float(res.initial_cost), float(res.cost),

@@ -125,7 +125,7 @@ class Run:
     caught: list = field(default_factory=list)
     started: tuple | None = None  # the lifted start's (q0, problem): the prior's switch solves from it again
     spare_cpu: bool = False  # a child may solve beside this process (pinrecon.processes.forkable)
-    beside: object = None  # the prior's switch solved beside the first solve: (name, Beside)
+    beside: Beside | None = None  # the prior's switched solve made beside the first solve
 
 
 def relabel_spans(tracks):
@@ -266,12 +266,12 @@ def _prior(run: Run) -> str | None:
     beside, run.beside = run.beside, None
     if switch is None:
         if beside is not None:
-            beside[1].cancel()
+            beside.cancel()
         _reissue(run)
         return None
     run.caught = []  # the first solve's warnings are dropped
     default = run.default_prior
-    _switch_to(run, switch[0], _taken(run, beside, switch[0]))
+    _switch_to(run, switch[0], _taken(run, beside))
     run.switch, run.judge = switch, default
     run.mirrors = run.mirrors or run.problem.weights.pose_prior_model in BROADER_PRIOR.values()
     why = f"the auto camera's focal length at {focal:.0f} px, implausible" if focal is not None else \
@@ -302,11 +302,11 @@ def _switch_to(run: Run, name: str, made: _Made | None = None) -> None:
         run.problem = with_lengths(run.inputs, run.mode, made.lengths, made.measured, made.reports)
     else:
         run.problem = make_problem(**run.inputs, calibrate=run.mode)
+        if made is not None:  # what the child's start left on its problem
+            run.problem.reports.update(made.reports)
     if run.started is not None and not _lifted_start(run):
         run.started = None  # the lifter joined: its start now
     if made is not None:
-        if not made.lengths:
-            run.problem.reports.update(made.reports)
         run.res, run.caught = made.res, []
         return
     default, run.default_prior = run.default_prior, None
@@ -332,20 +332,18 @@ def _switch_beside(run: Run) -> None:
         return
     callback, run.callback = run.callback, None
     try:
-        run.beside = (broader, Beside(_made_beside, run, broader, fork=True))
+        run.beside = Beside(_made_beside, run, broader, fork=True)
     finally:
         run.callback = callback
 
 
-def _taken(run: Run, beside, name: str) -> _Made | None:
-    """The switched solve made beside (:func:`_switch_beside`) for the prior ``name``, its
-    iterations replayed to the callback; None when there is none, or the callback stops it
-    (then it is solved here, where the callback is heard)."""
-    if beside is None or beside[0] != name:
-        if beside is not None:
-            beside[1].cancel()
+def _taken(run: Run, beside: Beside | None) -> _Made | None:
+    """The switched solve made beside (:func:`_switch_beside`: the default's broader prior, the
+    one every switch goes to), its iterations replayed to the callback; None when there is none,
+    or the callback stops it (then it is solved here, where the callback is heard)."""
+    if beside is None:
         return None
-    made = beside[1].result()
+    made = beside.result()
     if run.callback is not None and any(run.callback(rep) for rep in made.res.report):
         return None
     return made
@@ -456,7 +454,7 @@ def run_stages(run: Run, skip: Iterable[str] = (), progress: Callable | None = N
         _run_each(run, skip, progress, reports)
     finally:
         if run.beside is not None:  # a stage failed, or never took it
-            run.beside[1].cancel()
+            run.beside.cancel()
             run.beside = None
     _reissue(run)  # the main solve's warnings when the prior stage was switched off
     return reports

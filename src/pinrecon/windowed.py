@@ -66,7 +66,7 @@ from .identifiability import proportions_identifiability
 from .prior_yield import adapt_prior as adapt_to_keyframes
 from .prior_yield import decided_by_keyframes, pose_prior_row, with_pose_prior
 from .problem import make_problem
-from .processes import n_processes, usable_cpus
+from .processes import may_fork, n_processes, usable_cpus
 from .solver import SolveResult, SolverOptions, costs_at, solve
 from .starts import initial_trajectory
 from .starts.mirrors import MirrorStage, mirror_stage
@@ -359,11 +359,7 @@ def _jobs(n_jobs, n_windows: int) -> int:
     a process that is itself a worker (``pinrecon batch``'s, Dask's: their pool already uses the
     cores)."""
     jobs = n_processes(n_jobs, n_windows, usable_cpus())
-    if "fork" not in multiprocessing.get_all_start_methods():  # workers started afresh would run the caller's script
-        return 1
-    if multiprocessing.parent_process() is not None:  # a worker itself (pinrecon batch, Dask, stability): its pool's
-        return 1
-    return jobs
+    return jobs if may_fork() else 1
 
 
 def _solve_groups(s: _Setup, plan, jobs: int, callback, user_window) -> list[_Solved]:
