@@ -289,6 +289,37 @@ def test_overlay_stops_where_the_result_does(video_run, tmp_path):
     assert (cap.get(cv2.CAP_PROP_FRAME_WIDTH), cap.get(cv2.CAP_PROP_FRAME_HEIGHT)) == (2 * 1080, 1920)
 
 
+def test_overlay_from_the_detectors_frames_is_the_overlay_decoded_again(video_run, cut, tracked, tmp_path,
+                                                                       monkeypatch):
+    """``pinrecon video`` keeps the frames the detector decoded (scaled to the overlay's size,
+    :class:`KeptFrames`) and draws the overlay on them: the same video, frame for frame, as
+    the overlay drawn on the video decoded again; a video over the budget is decoded again."""
+    from pinrecon.video import video_info
+    from pinrecon.viz import overlay as overlay_module
+
+    res = pr.load_result(video_run[1] / "result.npz")
+    info = video_info(cut)
+    kept = overlay_module.KeptFrames(info, 960)
+    small = overlay_module.KeptFrames(info, 960, budget=3 * 960 * 540 * 3)  # room for 3 of the 10 frames
+    for t, frame in enumerate(overlay_module.iter_frames(cut)):
+        kept(t, frame)
+        small(t, frame)
+    assert len(kept.frames) == N and kept.frames[0].shape == (960, 540, 3) and small.frames is None
+
+    def read(path):
+        cap = cv2.VideoCapture(str(path))
+        frames = [cap.read()[1] for _ in range(N)]
+        cap.release()
+        return np.array(frames)
+
+    decoded = read(overlay_module.write_overlay(res, cut, tmp_path / "decoded.mp4", tracks=tracked))
+    again = read(overlay_module.write_overlay(res, cut, tmp_path / "small.mp4", tracks=tracked, frames=small))
+    monkeypatch.setattr(overlay_module, "iter_frames", lambda *a, **k: pytest.fail("decoded the video again"))
+    from_kept = read(overlay_module.write_overlay(res, cut, tmp_path / "kept.mp4", tracks=tracked, frames=kept))
+    assert decoded.shape == (N, 960, 1080, 3)
+    assert np.array_equal(from_kept, decoded) and np.array_equal(again, decoded)
+
+
 def test_two_calibrated_videos_are_one_solve(cut, tmp_path):
     """Cameras 1 and 2 of the trial with their calibration (pinrecon camera files from the
     Pose2Sim TOML): one solve of 5 frames, in the calibration's world, near the four-camera

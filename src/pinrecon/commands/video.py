@@ -135,13 +135,14 @@ class _Plots:
         return plot_result(res, self.folder, tracks=tracks if len(tracks) > 1 else tracks[0], animation=False)
 
 
-def _write_overlays(res, args, paths, tracks) -> tuple[list[Path], float]:
-    """Each video's overlay (``paths``, in the videos' order) and the seconds they took."""
+def _write_overlays(res, args, paths, tracks, kept) -> tuple[list[Path], float]:
+    """Each video's overlay (``paths``, in the videos' order) and the seconds they took
+    (``kept``: each video's frames kept by the detector's pass, or None)."""
     from ..viz.overlay import write_overlay
 
     t0 = time.perf_counter()
     out = [write_overlay(res, video, paths[i], camera_index=i, tracks=tracks[i], max_height=args.overlay_height,
-                         progress=not args.quiet) for i, video in enumerate(args.videos)]
+                         progress=not args.quiet, frames=kept[i]) for i, video in enumerate(args.videos)]
     return out, time.perf_counter() - t0
 
 
@@ -185,14 +186,18 @@ def _run(args, infos, files, stages, t_start, plots, auto, tracked) -> dict:
     from ..arguments import reconstruct_from_args
     from ..video import track_video
 
-    tracks = []
+    tracks, kept = [], [None] * len(args.videos)
     for i, (video, info) in enumerate(zip(args.videos, infos)):
         t0 = time.perf_counter()
         if tracked is not None:
             tr = tracked[i]
         else:
+            if not args.no_overlay:  # the overlay's frames kept as the detector decodes them (short videos)
+                from ..viz.overlay import KeptFrames
+
+                kept[i] = KeptFrames(info, args.overlay_height, budget=KeptFrames.BUDGET // len(args.videos))
             tr = track_video(video, fps=args.fps, max_frames=args.max_frames, model_complexity=args.model_complexity,
-                             progress=not args.quiet)
+                             progress=not args.quiet, on_frame=kept[i])
         tr.lifted.camera = i
         tr.save(files["tracks"][i])
         tracks.append(tr)
@@ -223,7 +228,7 @@ def _run(args, infos, files, stages, t_start, plots, auto, tracked) -> dict:
     if plots is not None:  # drawn by `pinrecon plot` in the other process while the overlay is written here
         plots.go()
     if not args.no_overlay:
-        paths, stages["overlay"] = _write_overlays(res, args, files["overlay"], tracks)
+        paths, stages["overlay"] = _write_overlays(res, args, files["overlay"], tracks, kept)
         written.append(paths)
     if plots is not None:
         t0 = time.perf_counter()

@@ -23,7 +23,7 @@ from ..video.frames import iter_frames, require_cv2, video_info
 from ..video.progress import FrameProgress
 from ._common import as_motion, second_view_camera, skeleton, skeleton_points
 
-__all__ = ["CENTRE_BGR", "JOINT_BGR", "LEFT_BGR", "RIGHT_BGR", "overlay_scale", "write_overlay"]
+__all__ = ["CENTRE_BGR", "JOINT_BGR", "LEFT_BGR", "RIGHT_BGR", "KeptFrames", "overlay_scale", "write_overlay"]
 
 LEFT_BGR = (255, 140, 0)  # azure: the figure's left
 RIGHT_BGR = (40, 40, 230)  # red: its right
@@ -45,6 +45,43 @@ def _even(x: float) -> int:
     return max(2, round(x / 2) * 2)
 
 
+def _overlay_size(width: int, height: int, max_height: int | None) -> tuple[int, int]:
+    s = overlay_scale(width, height, max_height)
+    return _even(width * s), _even(height * s)
+
+
+class KeptFrames:
+    """A video's frames scaled to the overlay's size, kept while another pass decodes them
+    (:func:`pinrecon.video.track_video`'s ``on_frame``), so that :func:`write_overlay` need not
+    decode the video again. Frames are kept up to ``budget`` bytes (default
+    :attr:`BUDGET`); a video with more lets them all go (:attr:`frames` is then None) and the
+    overlay decodes it as usual.
+
+    >>> kept = KeptFrames(video_info("clip.mp4"), max_height=960)   # doctest: +SKIP
+    >>> tracks = track_video("clip.mp4", on_frame=kept)              # doctest: +SKIP
+    >>> write_overlay(result, "clip.mp4", "overlay.mp4", frames=kept)  # doctest: +SKIP
+    """
+
+    #: bytes of scaled frames kept at most: 345 frames of 960 x 540
+    BUDGET = 512 * 2**20
+
+    def __init__(self, info, max_height: int | None = 960, budget: int | None = None):
+        self.size = _overlay_size(info.width, info.height, max_height)
+        self.budget = self.BUDGET if budget is None else int(budget)
+        self.frames: list[np.ndarray] | None = []
+        self._cv2 = require_cv2()
+
+    def __call__(self, t: int, frame: np.ndarray) -> None:
+        if self.frames is None:
+            return
+        if t != len(self.frames) or (t + 1) * self.size[0] * self.size[1] * 3 > self.budget:
+            self.frames = None  # over the budget (or not every frame seen): the overlay decodes the video
+            return
+        W, H = self.size
+        self.frames.append(frame.copy() if (W, H) == frame.shape[1::-1] else
+                           self._cv2.resize(frame, (W, H), interpolation=self._cv2.INTER_AREA))
+
+
 def write_overlay(
     result,
     video: str | os.PathLike,
@@ -55,6 +92,7 @@ def write_overlay(
     max_height: int | None = 960,
     second_view: float | None = None,
     progress: bool = False,
+    frames: KeptFrames | None = None,
 ) -> Path:
     """Write the overlay video of ``result`` over ``video`` to ``out_path`` (``.mp4``).
 
@@ -64,7 +102,9 @@ def write_overlay(
     at the nearest time ``t / fps``; the overlay stops at the result's last frame (or the
     tracks' last). ``max_height`` : the overlay's height in pixels (the
     input is scaled down to it, never up; ``None``: the input's). ``second_view`` : the side
-    panel's angle about the up axis, degrees (default 90). Returns the path written
+    panel's angle about the up axis, degrees (default 90). ``frames``: the video's frames kept
+    by :class:`KeptFrames` while the detector read it (the same ``max_height``); used
+    instead of decoding the video again when it holds every frame drawn. Returns the path written
     (atomically); the file holds one frame per input frame, ``2 W x H`` pixels after scaling.
     """
     cv2 = require_cv2()
@@ -74,8 +114,7 @@ def write_overlay(
         raise InputError(f"the result has {len(cams)} camera(s); no camera {camera_index}", field="camera_index")
     cam = cams[camera_index]
     info = video_info(video)
-    s = overlay_scale(info.width, info.height, max_height)
-    W, H = _even(info.width * s), _even(info.height * s)
+    W, H = _overlay_size(info.width, info.height, max_height)
     sx, sy = W / info.width, H / info.height
 
     sk = skeleton(motion.figure)
@@ -113,13 +152,15 @@ def write_overlay(
         n_frames = min(n_frames, info.frames)
     right = np.empty((H, W, 3), np.uint8)  # the side panel and the written frame, reused frame after frame
     canvas = np.empty((H, 2 * W, 3), np.uint8)
+    kept = frames.frames if frames is not None and frames.size == (W, H) else None
+    source = kept[:n_frames] if kept is not None and len(kept) >= n_frames else iter_frames(video, n_frames, ahead=4)
     with atomic_path(out_path) as tmp:
         writer = cv2.VideoWriter(str(tmp), cv2.VideoWriter_fourcc(*"mp4v"), info.fps, (2 * W, H))
         if not writer.isOpened():
             raise InputError("OpenCV cannot write an MPEG-4 video there", file=out_path)
         try:
             with FrameProgress(n_frames, f"overlay {out_path.name}", enabled=progress) as bar:
-                for t, frame in enumerate(iter_frames(video, n_frames, ahead=4)):
+                for t, frame in enumerate(source):
                     f = motion.frame_at(t / info.fps)
                     left = cv2.resize(frame, (W, H), interpolation=cv2.INTER_AREA) if (W, H) != frame.shape[1::-1] \
                         else frame.copy()
