@@ -219,14 +219,14 @@ def _run(args, infos, files, stages, t_start, plots, auto, tracked) -> dict:
     written = [files["tracks"], [files["result"]]]
     stages["reconstruct"] = time.perf_counter() - t0
 
+    if plots is not None:  # drawn by `pinrecon plot` in the other process while the exports and overlay are written
+        plots.go()
     t0 = time.perf_counter()
     from ..io.bvh_export import export_result
 
     written.append(export_result(files["result"], bvh=files["bvh"], csv=files["csv"], trc=files["trc"]))
     stages["exports"] = time.perf_counter() - t0
 
-    if plots is not None:  # drawn by `pinrecon plot` in the other process while the overlay is written here
-        plots.go()
     if not args.no_overlay:
         paths, stages["overlay"] = _write_overlays(res, args, files["overlay"], tracks, kept)
         written.append(paths)
