@@ -54,6 +54,18 @@ def test_a_child_that_fails_or_dies_leaves_the_value_to_the_caller(fn):
     assert Beside(fn, os.getpid(), fork=True).result() == "computed here"
 
 
+@pytest.mark.parametrize("fn", [_fails_there, _dies_there])
+def test_wait_gives_the_childs_value_and_never_computes_it_here(fn):
+    """A caller that failed itself waits for the child to clean up after it: the child's
+    value, or None, never a computation here."""
+    assert Beside(_square_and_pid, 3, fork=True).wait()[0] == 9
+    assert Beside(fn, os.getpid(), fork=True).wait() is None
+    assert Beside(_square_and_pid, 3, fork=False).wait() is None
+    job = Beside(_square_and_pid, 3, fork=True)
+    job.result()
+    assert job.wait() is None  # taken already
+
+
 def _raises(_):
     raise KeyError("wrong")
 

@@ -342,3 +342,50 @@ def test_import_does_not_need_matplotlib():
         env={"PYTHONPATH": env_path, "PATH": ""},
     )
     assert proc.returncode == 0, proc.stderr
+
+
+@pytest.mark.parametrize("animation", [False, True])
+def test_pictures_drawn_beside_are_the_pictures_drawn_here(tmp_path, walk_motion, monkeypatch, animation):
+    """With a second CPU, plot_result draws some pictures in a forked child (the stick strip
+    and the error plot, or the animation) and writes their bytes here: the same files, byte
+    for byte, as all drawn here; staged and published with the rest under Outputs.commit; and
+    when a picture drawn here fails, nothing is left, the child's pictures included."""
+    from pinrecon import processes
+    from pinrecon.io.atomic import Outputs
+    from pinrecon.viz import plots as plots_module
+
+    T = 24
+    cam = Orthographic.from_view([1, 0, 1], scale=300, center=(500, 500))
+    res = result_of(walk_motion.figure, walk_motion.q[:T] + 0.02, walk_motion.fps, cam)
+    tracks = Tracks(cam.project(walk_motion.figure.keypoints(walk_motion.q[:T])), walk_motion.figure.keypoint_names,
+                    walk_motion.fps)
+    forked = []
+
+    class Spy(processes.Beside):
+        def __init__(self, fn, *args, fork=None):
+            super().__init__(fn, *args, fork=fork)
+            forked.append(self.forked)
+
+    monkeypatch.setattr(processes, "Beside", Spy)
+    monkeypatch.setattr(processes, "forkable", lambda frames=None: False)
+    here = plot_result(res, tmp_path / "here", tracks=tracks, animation=animation)
+    monkeypatch.setattr(processes, "forkable", lambda frames=None: True)
+    outs = Outputs()
+    outs.add_folder(tmp_path / "beside")
+    with outs.commit():
+        beside = plot_result(res, tmp_path / "beside", tracks=tracks, animation=animation)
+    assert forked == [False, True]
+    names = ["joint_angles.png", "stick_strip.png", "reprojection.png", "reprojection_error.png"] + \
+        (["animation.gif"] if animation else [])
+    assert [p.name for p in here] == [p.name for p in beside] == names  # the documented order
+    assert sorted(p.name for p in (tmp_path / "beside").iterdir()) == sorted(names)  # no temporary file left
+    for a, b in zip(here, beside):
+        assert a.read_bytes() == b.read_bytes(), a.name
+
+    def broken(*args, **kwargs):
+        raise RuntimeError("the reprojection failed")
+
+    monkeypatch.setattr(plots_module, "plot_reprojection", broken)
+    with pytest.raises(RuntimeError, match="reprojection failed"):
+        plot_result(res, tmp_path / "failed", tracks=tracks, animation=animation)
+    assert list((tmp_path / "failed").iterdir()) == []

@@ -104,6 +104,25 @@ class Beside:
         """The value: the child's (its warnings issued again here), or computed here."""
         if self._done:
             raise RuntimeError("the value of a Beside is taken once")
+        got = self._receive()
+        if got is None or got[0] != "value":
+            return self.fn(*self.args)
+        said = set()
+        for message, category, filename, lineno in got[2]:  # once per text and place, as Python's default
+            if (key := (category, str(message), filename, lineno)) not in said:
+                said.add(key)
+                warnings.warn_explicit(message, category, filename, lineno)
+        return got[1]
+
+    def wait(self):
+        """The child's value once it ends, never computed here: None where no child ran, or it
+        failed or died (for a caller that failed itself and cleans up what the child made)."""
+        if self._done:
+            return None
+        got = self._receive()
+        return got[1] if got is not None and got[0] == "value" else None
+
+    def _receive(self):
         self._done = True
         got = None
         if self._proc is not None:
@@ -115,14 +134,7 @@ class Beside:
             except (EOFError, OSError):  # the child died before it said anything
                 got = None
             self._reap()
-        if got is None or got[0] != "value":
-            return self.fn(*self.args)
-        said = set()
-        for message, category, filename, lineno in got[2]:  # once per text and place, as Python's default
-            if (key := (category, str(message), filename, lineno)) not in said:
-                said.add(key)
-                warnings.warn_explicit(message, category, filename, lineno)
-        return got[1]
+        return got
 
     def cancel(self) -> None:
         """Stop the child (its value is not wanted)."""

@@ -148,7 +148,8 @@ def _write_overlays(res, args, paths, tracks, kept) -> tuple[list[Path], float]:
 
 def run_video(args, tracked=None) -> dict:
     """The work of ``pinrecon video`` for its parsed ``args``; returns ``{"files": [...],
-    "frames": n, "seconds": s, "result": Result, "stages": {name: seconds}}``. ``tracked``:
+    "frames": n, "seconds": s, "result": Result, "tracks": [Tracks per video], "stages":
+    {name: seconds}}``. ``tracked``:
     one :class:`~pinrecon.Tracks` per video from an earlier :func:`pinrecon.video.track_video`
     (a benchmark's cache), used instead of running the detector again."""
     from ..video import require_mediapipe, video_info
@@ -239,7 +240,7 @@ def _run(args, infos, files, stages, t_start, plots, auto, tracked) -> dict:
         stages["plots"] = plots.seconds or time.perf_counter() - t0
     seconds = time.perf_counter() - t_start
     return {"files": [Path(f) for group in written for f in group], "frames": tracks[0].T, "seconds": seconds,
-            "result": res, "stages": stages}
+            "result": res, "tracks": tracks, "stages": stages}
 
 
 def cmd_video(args) -> int:

@@ -35,7 +35,7 @@ from pathlib import Path
 
 from ..errors import InputError
 
-__all__ = ["atomic_path", "atomic_write_text", "Outputs", "check_writable"]
+__all__ = ["Outputs", "atomic_path", "atomic_write_bytes", "atomic_write_text", "check_writable", "unstaged"]
 
 #: the transaction of the :meth:`Outputs.commit` block running in this context (None outside one)
 _STAGE: contextvars.ContextVar = contextvars.ContextVar("pinrecon_outputs_stage", default=None)
@@ -69,6 +69,24 @@ def atomic_path(path: str | os.PathLike):
 def atomic_write_text(path: str | os.PathLike, text: str) -> None:
     with atomic_path(path) as tmp:
         tmp.write_text(text)
+
+
+def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> Path:
+    with atomic_path(path) as tmp:
+        tmp.write_bytes(data)
+    return Path(path)
+
+
+@contextmanager
+def unstaged():
+    """:func:`atomic_path` writes in place under this block, even inside an
+    :meth:`Outputs.commit` block (a forked child's staging would never be published: it
+    writes elsewhere and hands the bytes back)."""
+    token = _STAGE.set(None)
+    try:
+        yield
+    finally:
+        _STAGE.reset(token)
 
 
 def _why_not_writable(path: Path) -> str | None:

@@ -415,7 +415,9 @@ def plot_result(
 
     Returns the list of files written. Every input is read before anything is drawn, and
     when a picture fails the files this call wrote are removed again: a failed call
-    leaves no half set of pictures behind.
+    leaves no half set of pictures behind. Where the process may use a second CPU
+    (:func:`pinrecon.processes.forkable`; ``PINRECON_BESIDE=0`` says no), a forked child
+    draws some of the pictures meanwhile: the same files.
     """
     from ..result import load_result
     from ..tracks import Tracks, load_tracks
@@ -449,25 +451,74 @@ def plot_result(
 
 
 def _draw_all(result, out_dir: Path, tmotion, tracks, joints, animation: bool, written: list) -> None:
-    """The pictures of :func:`plot_result`; each path is appended to ``written`` once saved."""
-    written.append(save_figure(plot_joint_angles(result, joints, tmotion), out_dir / "joint_angles.png"))
-    written.append(save_figure(plot_stick_strip(result, truth=tmotion), out_dir / "stick_strip.png"))
-    if isinstance(tracks, (list, tuple)):
-        _per_camera_reprojection(result, tracks, out_dir, written)
-    elif tracks is not None:
-        if getattr(result, "camera", None) is None:
-            warnings.warn("the result has no camera: reprojection.png is not drawn", stacklevel=2)
-        else:
-            fig = plot_reprojection(result, tracks)
-            written.append(save_figure(fig, out_dir / "reprojection.png"))
-    err = np.asarray(getattr(result, "reprojection_error_px", np.zeros(0)), float)
-    if np.any(np.isfinite(err)):
-        fig = plot_reprojection_error(result)
-        written.append(save_figure(fig, out_dir / "reprojection_error.png"))
-    if animation:
+    """The pictures of :func:`plot_result`; each path is appended to ``written`` once saved
+    (in the order that docstring lists them). Where a child may be forked beside this process
+    (:class:`pinrecon.processes.Beside`) it draws the stick strip and the error plot (with an
+    animation: the animation) while this process draws the rest; the child's pictures come
+    back as bytes and are written here, with the others (staged with them under an
+    :meth:`~pinrecon.io.atomic.Outputs.commit`)."""
+    from ..io.atomic import atomic_write_bytes
+    from ..processes import Beside
+
+    # each draws its pictures into a folder, appending their paths to a list as it saves them
+    def angles(folder, into):
+        into.append(save_figure(plot_joint_angles(result, joints, tmotion), folder / "joint_angles.png"))
+
+    def strip(folder, into):
+        into.append(save_figure(plot_stick_strip(result, truth=tmotion), folder / "stick_strip.png"))
+
+    def reprojection(folder, into):
+        if isinstance(tracks, (list, tuple)):
+            _per_camera_reprojection(result, tracks, folder, into)
+        elif tracks is not None and getattr(result, "camera", None) is None:
+            warnings.warn("the result has no camera: reprojection.png is not drawn", stacklevel=3)
+        elif tracks is not None:
+            into.append(save_figure(plot_reprojection(result, tracks), folder / "reprojection.png"))
+
+    def error(folder, into):
+        if np.any(np.isfinite(np.asarray(getattr(result, "reprojection_error_px", np.zeros(0)), float))):
+            into.append(save_figure(plot_reprojection_error(result), folder / "reprojection_error.png"))
+
+    def animation_gif(folder, into):
         from .animate import animate
 
-        written.append(animate(result, out_dir / "animation.gif", truth=tmotion))
+        into.append(animate(result, folder / "animation.gif", truth=tmotion))
+
+    order = [angles, strip, reprojection, error] + ([animation_gif] if animation else [])
+    there = [animation_gif] if animation else [strip, error]
+    beside = Beside(_rendered, there)
+    done = {}
+    try:
+        for draw in (d for d in order if d not in there):
+            mark = len(written)
+            draw(out_dir, written)
+            done[draw] = written[mark:]
+    except BaseException:
+        beside.wait()  # its pictures were never written here: nothing of it to remove
+        raise
+    for draw, files in zip(there, beside.result()):
+        done[draw] = []
+        for name, data in files:
+            done[draw].append(atomic_write_bytes(out_dir / name, data))
+            written.append(done[draw][-1])
+    written[:] = [f for d in order for f in done[d]]
+
+
+def _rendered(draws) -> list[list[tuple[str, bytes]]]:
+    """Each of ``draws`` (``draw(folder, into)``: pictures drawn into a folder, their paths
+    appended to ``into``) drawn in a temporary folder, not staged (a forked child's staging is
+    never published): per draw, its files' names and bytes."""
+    import tempfile
+
+    from ..io.atomic import unstaged
+
+    out = []
+    with unstaged(), tempfile.TemporaryDirectory(prefix="pinrecon-plots-") as tmp:
+        for draw in draws:
+            files: list[Path] = []
+            draw(Path(tmp), files)
+            out.append([(Path(p).name, Path(p).read_bytes()) for p in files])
+    return out
 
 
 def _per_camera_reprojection(result, tracks: Sequence, out_dir: Path, written: list | None = None) -> list[Path]:
