@@ -247,3 +247,48 @@ def test_a_degenerate_focal_length_solves_again_with_the_broader_prior_and_the_l
     assert "implausible" in stage.changed
     res.save(tmp_path / "r.npz")
     assert "a degenerate solution" in pr.load_result(tmp_path / "r.npz").summary()
+
+
+@pytest.mark.parametrize("lifter", ["none", "default"])
+def test_the_broader_leading_stretch_made_beside_is_the_one_made_here(random_motion, monkeypatch, lifter):
+    """In windows, the broader prior's leading stretch does not depend on the default's: where a
+    CPU is spare a forked child makes it while the default's is solved and judged
+    (``pinrecon.processes.Beside``). The same result to the digit as made here, the child's
+    stretch taken (the windows solve none of their own), its iterations replayed to the
+    callback in the same order; a callback that stops one of them has it solved here, where it
+    stops as asked."""
+    import sys
+
+    from pinrecon import windowed
+    from pinrecon.solver import SolverOptions
+
+    reconstruct_module = sys.modules["pinrecon.reconstruct"]
+    fig, tracks, cam, keys = random_motion
+    monkeypatch.setattr(windowed, "usable_cpus", lambda: 1)  # the windows here: their iterations in order
+    real = windowed.solve_lead
+
+    def run(beside, stop_at=None):
+        monkeypatch.setattr(reconstruct_module, "forkable", lambda frames=None: beside)
+        leads, heard = [], []  # leads: how many iterations the callback had heard when the windows' stretch began
+        monkeypatch.setattr(windowed, "solve_lead", lambda *a, **k: leads.append(len(heard)) or real(*a, **k))
+
+        def callback(rep):
+            heard.append(rep.cost)
+            return stop_at is not None and len(heard) >= stop_at
+
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            res = pr.reconstruct(fig, tracks, cam, keys, calibrate="lengths", floor="none", skip=("yield",), window=20,
+                                 options=SolverOptions(max_iterations=8), callback=callback,
+                                 **({"lifter": "none"} if lifter == "none" else {}))
+        return res, leads, heard
+
+    here, beside = run(False), run(True)
+    assert str(here[0].extras["prior_model"]) == "human_pose_mixture"  # the clip switches
+    assert len(here[1]) == 1 and beside[1] == []  # the broader stretch: solved by the windows, or taken from the child
+    assert np.array_equal(here[0].q, beside[0].q) and here[2] == beside[2]
+    # stopped at the broader stretch's first iteration: heard (replayed) once more beside, then solved here
+    stopped_here, stopped_beside = run(False, stop_at=here[1][0] + 1), run(True, stop_at=here[1][0] + 1)
+    k = here[1][0]
+    assert len(stopped_beside[1]) == 1 and stopped_beside[2] == stopped_here[2][: k + 1] + stopped_here[2][k:]
+    assert np.array_equal(stopped_here[0].q, stopped_beside[0].q)

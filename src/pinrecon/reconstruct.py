@@ -37,6 +37,7 @@ from .problem import (
     make_marker_problem,
     make_problem,
 )
+from .processes import Beside, forkable
 from .result import Result, load_result
 from .rows import Measurement2D
 from .rows.lifted import LiftedPose, disagreement_extras
@@ -395,18 +396,21 @@ def _reconstruct_windowed(problem, inputs, mode, calibrate, auto, start, init, s
         problem = with_lengths(inputs, mode, *found) if found else make_problem(**inputs, calibrate=mode)
     # the tracks' own lifted cues decide the limbs' reflections: no mirror stage (as pinrecon.stages)
     mirrors = not has_lifted(problem)
-    lead, switch = None, None
-    if default is not None and not adapt:  # the prior judged on the leading stretch's poses, as its globals
-        lead = solve_lead(problem, start, options, callback, window=span, judge=True)
-        unfamiliar = unfamiliar_poses(lead.problem, lead.problem.figure.normalize(lead.x))
-        switch = broader_prior(default, "auto", {} if unfamiliar is None else unfamiliar.to_extras(), share=limit)
-    if switch is not None:
-        weights = replace(inputs["weights"], pose_prior_model=switch[0])
-        if lift is not None:  # poses the default prior does not know: the lifter's cues join
-            inputs = {**inputs, "tracks": lift(inputs["tracks"])}
-        inputs = {**inputs, "weights": weights}
-        problem = with_lengths(inputs, mode, *found) if found else make_problem(**inputs, calibrate=mode)
-        lead = None  # the broader prior's own stretch
+    lead, switch, beside = None, None, None
+    try:
+        if default is not None and not adapt:  # the prior judged on the leading stretch's poses, as its globals
+            if BROADER_PRIOR.get(default) and forkable():  # the broader prior's stretch meanwhile, in a child
+                beside = Beside(_broader_lead, inputs, mode, found, BROADER_PRIOR[default], lift, start, options,
+                                span, fork=True)
+            lead = solve_lead(problem, start, options, callback, window=span, judge=True)
+            unfamiliar = unfamiliar_poses(lead.problem, lead.problem.figure.normalize(lead.x))
+            switch = broader_prior(default, "auto", {} if unfamiliar is None else unfamiliar.to_extras(), share=limit)
+        if switch is not None:
+            inputs, problem = _switched(inputs, mode, found, switch[0], lift)
+            lead = _taken_lead(beside, callback)  # the broader prior's own stretch (None: solved in the windows')
+    finally:
+        if beside is not None:
+            beside.cancel()  # not taken: the clip keeps the default
     res = solve_windowed(problem, start, options, callback, window=span, mirrors=mirrors and _mirrors(problem, init),
                          adapt_prior=adapt, n_jobs=-1, lead=lead)
     result = _package(problem, res, auto, identify=False, judge=default if switch else None)
@@ -417,6 +421,36 @@ def _reconstruct_windowed(problem, inputs, mode, calibrate, auto, start, init, s
     result.stages = [StageReport("windowed", time.perf_counter() - t0, float(res.initial_cost), float(res.cost),
                                  changed)]
     return result
+
+
+def _switched(inputs, mode, found, name: str, lift):
+    """``(inputs, problem)`` of a clip solved in windows switched to the broader prior ``name``
+    (the lifter's cues joined; ``found``: the limb lengths measured from the tracks, or None)."""
+    if lift is not None:  # poses the default prior does not know: the lifter's cues join
+        inputs = {**inputs, "tracks": lift(inputs["tracks"])}
+    inputs = {**inputs, "weights": replace(inputs["weights"], pose_prior_model=name)}
+    return inputs, (with_lengths(inputs, mode, *found) if found else make_problem(**inputs, calibrate=mode))
+
+
+def _broader_lead(inputs, mode, found, name: str, lift, start, options, span):
+    """The leading stretch of the clip switched to ``name`` (:func:`_switched`), as
+    :func:`solve_windowed` would solve it, made in a child beside the default's (the switch
+    does not depend on it): ``(Lead, its iterations)``, the stretch's problem left here."""
+    heard = []
+    lead = solve_lead(_switched(inputs, mode, found, name, lift)[1], start, options, heard.append, window=span)
+    return replace(lead, problem=None, x=None), heard
+
+
+def _taken_lead(beside, callback):
+    """The broader prior's leading stretch made beside (:func:`_broader_lead`), its iterations
+    replayed to the callback; None when there is none or the callback stops it (then
+    :func:`solve_windowed` solves it, where the callback is heard)."""
+    if beside is None:
+        return None
+    lead, heard = beside.result()
+    if callback is not None and any(callback(rep) for rep in heard):
+        return None
+    return lead
 
 
 def _may_broaden(figure, weights, init) -> bool:

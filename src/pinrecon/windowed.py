@@ -17,7 +17,8 @@ by window, in order:
   the middle half of the overlap, away from both windows' ends where a window knows least;
 * global unknowns (a calibration) are solved once on a leading stretch of the clip
   (:data:`CALIBRATION_FRAMES`, or the first window if longer; :func:`solve_lead`, whose poses
-  :func:`pinrecon.reconstruct` also judges the pose prior on), then held in every window
+  :func:`pinrecon.reconstruct` also judges the pose prior on, making the broader prior's
+  stretch meanwhile in a forked child where a CPU is spare), then held in every window
   (:func:`pinrecon.reconstruct` measures one camera's limb lengths from the tracks of its
   first frames before, as the batch solve does on the clip);
   which of the fitted lengths that stretch's data fix
@@ -56,7 +57,7 @@ import time
 import warnings
 from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -146,13 +147,15 @@ def window_plan(n_frames: int, window: int, overlap: int, unit: int = 1) -> list
 class Lead:
     """The leading stretch of a clip solved in windows (the module docstring): its problem
     (None when it has nothing to solve), its solution ``x``, the globals solved on it and what
-    its data fix of them, the pose prior adapted to its keyframes (held in every window)."""
+    its data fix of them, the pose prior adapted to its keyframes (held in every window), and
+    its problem's reports (e.g. the start's, carried to the clip's problem)."""
 
     problem: object = None
     x: np.ndarray | None = None
     g_solved: np.ndarray | None = None
     identified: object = None
     held_prior: object = None
+    reports: dict = field(default_factory=dict)
 
 
 def _plan(problem, window: int, overlap: int | None):
@@ -190,6 +193,7 @@ def solve_lead(problem, start="auto", options: SolverOptions | None = None, call
         if problem.g0 is not None:
             lead.g_solved = res.g if res.g is not None else wp.g0
             lead.identified = proportions_identifiability(wp, res.x, lead.g_solved)  # what this stretch's data fix
+    lead.reports = lead.problem.reports
     return lead
 
 
@@ -226,7 +230,7 @@ def solve_windowed(problem, start="auto", options: SolverOptions | None = None, 
         lead = solve_lead(problem, start, options, callback, window=window, overlap=overlap, adapt_prior=adapt_prior)
     g_solved, identified, held_prior = lead.g_solved, lead.identified, lead.held_prior
     if g_solved is not None:
-        for key, rep in lead.problem.reports.items():  # e.g. the hypotheses start's report
+        for key, rep in lead.reports.items():  # e.g. the hypotheses start's report
             problem.reports.setdefault(key, rep)
     reports, iterations, statuses, fault_reports, tried, mirrored = [], 0, [], [[] for _ in views], {}, {}
     user_window = getattr(callback, "window", None)
