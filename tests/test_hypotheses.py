@@ -255,6 +255,32 @@ def test_search_keeps_a_right_base(walk_problem):
     assert flip_rate(fig.keypoints(Q0)[:, idx], P, cam, segs) <= f_direct + 0.02 < 0.12
 
 
+def test_the_flipped_trunk_searched_beside_is_the_one_searched_here(walk_problem, monkeypatch):
+    """The flipped trunk's candidate does not depend on the base's: where a CPU is spare a
+    forked child searches it meanwhile (``pinrecon.processes.Beside``). The same start and
+    report to the digit as searched here, and it was the child's."""
+    from pinrecon import processes
+    from pinrecon.starts import hypotheses
+
+    *_, problem = walk_problem
+    forked = []
+
+    class Spy(processes.Beside):
+        def __init__(self, fn, *args, fork=None):
+            super().__init__(fn, *args, fork=fork)
+            forked.append(self.forked)
+
+    monkeypatch.setattr(hypotheses, "Beside", Spy)
+    out = {}
+    for beside in (False, True):
+        monkeypatch.setattr(hypotheses, "forkable", lambda frames=None, b=beside: b)
+        out[beside] = search_hypotheses(problem, planarity=False, turns=False)
+    assert forked == [False, True]
+    (Qh, rh), (Qb, rb) = out[False], out[True]
+    assert np.array_equal(Qh, Qb) and rh.chosen == rb.chosen and rh.torso_gap == rb.torso_gap
+    assert np.array_equal(rh.states, rb.states) and rh.spans == rb.spans
+
+
 def test_splice_path_is_the_brute_force_minimum():
     """The trunk splice's path against every 0/1 path of a short clip, scored by hand."""
     rng = np.random.default_rng(4)

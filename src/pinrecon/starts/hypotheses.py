@@ -76,6 +76,7 @@ import numpy as np
 from scipy.ndimage import minimum_filter1d
 
 from ..problem import ReconstructionProblem, posture_row, rest_pose
+from ..processes import Beside, forkable
 from ..rows import JointLimits, Points3D, Posture, State
 from ..rows.lifted import LiftedPose
 from ..solver import SolverOptions, solve
@@ -492,20 +493,31 @@ def search_hypotheses(
     if sub_frames[-1] != T - 1:
         sub_frames = np.append(sub_frames, T - 1)
     uv = clean_tracks(problem, Q_base)
-    bases = [Q_base]
     trunk = trunk_keypoints(fig, names, passes)
-    if torso and fig.floating and len(trunk) >= 3:
-        flipped = torso_flip(fig, Q_base, cam, trunk)
-        bases.append(fig.normalize(solve(problem, fig.clamp(flipped, 1e-3), base_options, active=problem.active).x))
+
     # candidates are compared with the global unknowns (calibration) held at their start:
     # freed, they fit a wrong reflection as well as the right one (bench_real: the walk's
     # flips with first and last keyframes went from 31 to 47 %)
-    results = []
-    for k, Qb in enumerate(bases):
+    def candidate(Qb, name: str, flip: bool = False):
+        """The limbs searched on the base ``Qb`` (``flip``: its trunk reflected and solved
+        first), then the whole MAP solved from them: ``(cost, Q, labels, states, gaps, spans,
+        base, name)``."""
+        if flip:
+            Qb = fig.normalize(solve(problem, fig.clamp(torso_flip(fig, Qb, cam, trunk), 1e-3), base_options,
+                                     active=problem.active).x)
         Q0, labels, states, gaps, spans = _limb_search(problem, Qb, uv, passes, sub_frames, step, switch_sigma,
                                                        ik_options, sigma_pull_m, acc_weight)
         res = solve(problem, Q0, final_options, active=problem.active)
-        results.append((res.cost, fig.normalize(res.x), labels, states, gaps, spans, Qb, "trunk flipped" if k else "limbs"))
+        return res.cost, fig.normalize(res.x), labels, states, gaps, spans, Qb, name
+
+    flipped = None
+    if torso and fig.floating and len(trunk) >= 3:  # the flipped trunk's search in a child meanwhile, where it may
+        flipped = Beside(candidate, Q_base, "trunk flipped", True, fork=forkable(T))
+    try:
+        results = [candidate(Q_base, "limbs")] + ([flipped.result()] if flipped is not None else [])
+    finally:
+        if flipped is not None:
+            flipped.cancel()
     switches = []
     if len(results) == 2 and splice_sigma_m > 0:
         QA, QB = results[0][1], results[1][1]
