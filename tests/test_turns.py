@@ -115,6 +115,35 @@ def test_a_spurious_turn_is_wound_out():
     assert _angle_deg(out, Q).max() < 60.0
 
 
+def test_the_turn_the_other_way_solved_beside_is_the_one_solved_here(monkeypatch):
+    """Each window's two windings do not depend on each other: where a CPU is spare the turn
+    the other way is solved in a forked child meanwhile (``pinrecon.processes.Beside``). The
+    same start and report to the digit as solved here, and it was the child's."""
+    from pinrecon import processes
+    from pinrecon.starts import turns
+
+    fig = pr.Figure.human()
+    _, Q = human_walk(60, 30.0)
+    cam = perspective_side_camera(Q, 50.0, distance_m=5.0)
+    problem = make_problem(fig, project_tracks(fig, Q, cam, NAMES, fps=30.0, noise_px=1.0, seed=3), cam)
+    start = _spun(Q, 25, 31, 1)
+    forked = []
+
+    class Spy(processes.Beside):
+        def __init__(self, fn, *args, fork=None):
+            super().__init__(fn, *args, fork=fork)
+            forked.append(self.forked)
+
+    monkeypatch.setattr(turns, "Beside", Spy)
+    out = {}
+    for beside in (False, True):
+        monkeypatch.setattr(turns, "forkable", lambda frames=None, b=beside: b)
+        out[beside] = wind_turns(problem, start)
+    assert set(forked[: len(forked) // 2]) == {False} and set(forked[len(forked) // 2:]) == {True}
+    assert np.array_equal(out[False][0], out[True][0]) and out[False][1] == out[True][1]
+    assert out[True][1][0].turns == -1  # the turn the other way (the child's) was the one kept
+
+
 def test_turned_back_is_the_drawdown_against_the_net_turn():
     from pinrecon.starts.turns import turned_back
 

@@ -51,6 +51,7 @@ import numpy as np
 from scipy.ndimage import uniform_filter1d
 from scipy.spatial.transform import Rotation
 
+from ..processes import Beside, forkable
 from ..solver import SolverOptions, globals_of, solve
 
 __all__ = ["Turn", "TurnStage", "fast_turn_windows", "split_at", "turn_angle", "turn_axis", "turn_stage", "turned_back",
@@ -188,16 +189,21 @@ def turned_back(angle) -> float:
     return float(np.max(np.maximum.accumulate(x) - x))
 
 
-def _wind_windows(problem, Q, cost, up, windows, solve_one, min_gain):
+def _wind_windows(problem, Q, cost, up, windows, solve_one, min_gain, beside: bool = False):
     """Each window wound a whole turn either way from the current best and solved
     (``solve_one(Q) -> SolveResult``); the cheaper kept when it saves more than
-    ``min_gain``. Returns (the last kept SolveResult or None, a :class:`Turn` per window)."""
+    ``min_gain``. ``beside``: the turn the other way solved in a child forked meanwhile
+    where a CPU is spare (:class:`~pinrecon.processes.Beside`; ``solve_one`` calls nobody
+    back). Returns (the last kept SolveResult or None, a :class:`Turn` per window)."""
     fig = problem.figure
     kept, report = None, []
+    fork = beside and forkable(problem.n_frames)
     for a, b in windows:
         best, best_k = None, 0
-        for k in (1, -1):
-            res = solve_one(fig.clamp(fig.normalize(wind(Q, up, a, b, k)), 1e-3))
+        starts = [fig.clamp(fig.normalize(wind(Q, up, a, b, k)), 1e-3) for k in (1, -1)]
+        with Beside(solve_one, starts[1], fork=fork) as other:
+            solved = [solve_one(starts[0]), other.result()]
+        for k, res in zip((1, -1), solved):
             if res.cost < (cost if best is None else best.cost) - min_gain:
                 best, best_k = res, k
         report.append(Turn(a, b, best_k, cost - float(best.cost) if best is not None else 0.0))
@@ -226,7 +232,7 @@ def wind_turns(problem, Q, options: SolverOptions | None = None, *, cost: float 
         cur = solve(problem, fig.clamp(Q, 1e-3), options, active=problem.active)
         Q, cost = fig.normalize(cur.x), float(cur.cost)
     kept, report = _wind_windows(problem, Q, cost, *found,
-                                 lambda X: solve(problem, X, options, active=problem.active), min_gain)
+                                 lambda X: solve(problem, X, options, active=problem.active), min_gain, beside=True)
     return (Q if kept is None else fig.normalize(kept.x)), report
 
 
