@@ -186,3 +186,23 @@ def scratch(tmp_path):
     yield path
     if path != tmp_path:
         shutil.rmtree(path, ignore_errors=True)
+
+
+@pytest.fixture
+def spy_beside(monkeypatch):
+    """``spy_beside(module)``: ``module.Beside`` replaced by one that records, in the list
+    returned, whether each computation was forked (the tests of work made beside the caller)."""
+    from pinrecon import processes
+
+    def spy(module):
+        forked = []
+
+        class Spy(processes.Beside):
+            def __init__(self, fn, *args, fork=None):
+                super().__init__(fn, *args, fork=fork)
+                forked.append(self.forked)
+
+        monkeypatch.setattr(module, "Beside", Spy)
+        return forked
+
+    return spy

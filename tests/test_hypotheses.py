@@ -255,22 +255,14 @@ def test_search_keeps_a_right_base(walk_problem):
     assert flip_rate(fig.keypoints(Q0)[:, idx], P, cam, segs) <= f_direct + 0.02 < 0.12
 
 
-def test_the_flipped_trunk_searched_beside_is_the_one_searched_here(walk_problem, monkeypatch):
+def test_the_flipped_trunk_searched_beside_is_the_one_searched_here(walk_problem, monkeypatch, spy_beside):
     """The flipped trunk's candidate does not depend on the base's: where a CPU is spare a
     forked child searches it meanwhile (``pinrecon.processes.Beside``). The same start and
     report to the digit as searched here, and it was the child's."""
-    from pinrecon import processes
     from pinrecon.starts import hypotheses
 
     *_, problem = walk_problem
-    forked = []
-
-    class Spy(processes.Beside):
-        def __init__(self, fn, *args, fork=None):
-            super().__init__(fn, *args, fork=fork)
-            forked.append(self.forked)
-
-    monkeypatch.setattr(hypotheses, "Beside", Spy)
+    forked = spy_beside(hypotheses)
     out = {}
     for beside in (False, True):
         monkeypatch.setattr(hypotheses, "forkable", lambda frames=None, b=beside: b)

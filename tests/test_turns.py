@@ -115,11 +115,10 @@ def test_a_spurious_turn_is_wound_out():
     assert _angle_deg(out, Q).max() < 60.0
 
 
-def test_the_turn_the_other_way_solved_beside_is_the_one_solved_here(monkeypatch):
+def test_the_turn_the_other_way_solved_beside_is_the_one_solved_here(monkeypatch, spy_beside):
     """Each window's two windings do not depend on each other: where a CPU is spare the turn
     the other way is solved in a forked child meanwhile (``pinrecon.processes.Beside``). The
     same start and report to the digit as solved here, and it was the child's."""
-    from pinrecon import processes
     from pinrecon.starts import turns
 
     fig = pr.Figure.human()
@@ -127,14 +126,7 @@ def test_the_turn_the_other_way_solved_beside_is_the_one_solved_here(monkeypatch
     cam = perspective_side_camera(Q, 50.0, distance_m=5.0)
     problem = make_problem(fig, project_tracks(fig, Q, cam, NAMES, fps=30.0, noise_px=1.0, seed=3), cam)
     start = _spun(Q, 25, 31, 1)
-    forked = []
-
-    class Spy(processes.Beside):
-        def __init__(self, fn, *args, fork=None):
-            super().__init__(fn, *args, fork=fork)
-            forked.append(self.forked)
-
-    monkeypatch.setattr(turns, "Beside", Spy)
+    forked = spy_beside(turns)
     out = {}
     for beside in (False, True):
         monkeypatch.setattr(turns, "forkable", lambda frames=None, b=beside: b)

@@ -345,7 +345,8 @@ def test_import_does_not_need_matplotlib():
 
 
 @pytest.mark.parametrize("animation", [False, True])
-def test_pictures_drawn_beside_are_the_pictures_drawn_here(tmp_path, walk_motion, monkeypatch, animation):
+def test_pictures_drawn_beside_are_the_pictures_drawn_here(tmp_path, walk_motion, monkeypatch, spy_beside,
+                                                           animation):
     """With a second CPU, plot_result draws some pictures in a forked child (the stick strip
     and the error plot, or the animation) and writes their bytes here: the same files, byte
     for byte, as all drawn here; staged and published with the rest under Outputs.commit; and
@@ -359,14 +360,7 @@ def test_pictures_drawn_beside_are_the_pictures_drawn_here(tmp_path, walk_motion
     res = result_of(walk_motion.figure, walk_motion.q[:T] + 0.02, walk_motion.fps, cam)
     tracks = Tracks(cam.project(walk_motion.figure.keypoints(walk_motion.q[:T])), walk_motion.figure.keypoint_names,
                     walk_motion.fps)
-    forked = []
-
-    class Spy(processes.Beside):
-        def __init__(self, fn, *args, fork=None):
-            super().__init__(fn, *args, fork=fork)
-            forked.append(self.forked)
-
-    monkeypatch.setattr(processes, "Beside", Spy)
+    forked = spy_beside(processes)
     monkeypatch.setattr(processes, "forkable", lambda frames=None: False)
     here = plot_result(res, tmp_path / "here", tracks=tracks, animation=animation)
     monkeypatch.setattr(processes, "forkable", lambda frames=None: True)
