@@ -255,6 +255,7 @@ def test_search_keeps_a_right_base(walk_problem):
     assert flip_rate(fig.keypoints(Q0)[:, idx], P, cam, segs) <= f_direct + 0.02 < 0.12
 
 
+@pytest.mark.slow
 def test_the_flipped_trunk_searched_beside_is_the_one_searched_here(walk_problem, monkeypatch, spy_beside):
     """The flipped trunk's candidate does not depend on the base's: where a CPU is spare a
     forked child searches it meanwhile (``pinrecon.processes.Beside``). The same start and

@@ -249,7 +249,7 @@ def test_a_degenerate_focal_length_solves_again_with_the_broader_prior_and_the_l
     assert "a degenerate solution" in pr.load_result(tmp_path / "r.npz").summary()
 
 
-@pytest.mark.parametrize("lifter", ["none", "default"])
+@pytest.mark.parametrize("lifter", ["none", pytest.param("default", marks=pytest.mark.slow)])
 def test_the_broader_leading_stretch_made_beside_is_the_one_made_here(random_motion, monkeypatch, lifter):
     """In windows, the broader prior's leading stretch does not depend on the default's: where a
     CPU is spare a forked child makes it while the default's is solved and judged

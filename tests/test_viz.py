@@ -344,7 +344,7 @@ def test_import_does_not_need_matplotlib():
     assert proc.returncode == 0, proc.stderr
 
 
-@pytest.mark.parametrize("animation", [False, True])
+@pytest.mark.parametrize("animation", [False, pytest.param(True, marks=pytest.mark.slow)])
 def test_pictures_drawn_beside_are_the_pictures_drawn_here(tmp_path, walk_motion, monkeypatch, spy_beside,
                                                            animation):
     """With a second CPU, plot_result draws some pictures in a forked child (the stick strip
