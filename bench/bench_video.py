@@ -70,9 +70,13 @@ def truth() -> np.ndarray:
     return m.points[:, [m.names.index(n) for n in COCO12]]
 
 
+def _cache(video: Path) -> Path:
+    return datasets.cache_dir() / "bench_video" / f"{video.stem}-mediapipe{MEDIAPIPE_VERSION}.npz"
+
+
 def tracked(video: Path, cold: bool) -> tuple[pr.Tracks, float]:
     """MediaPipe's tracks of ``video`` and the seconds its cold run took (cached)."""
-    cache = datasets.cache_dir() / "bench_video" / f"{video.stem}-mediapipe{MEDIAPIPE_VERSION}.npz"
+    cache = _cache(video)
     if cache.exists() and not cold:
         z = np.load(cache, allow_pickle=False)
         names = [str(n) for n in z["names"]]
@@ -87,7 +91,7 @@ def tracked(video: Path, cold: bool) -> tuple[pr.Tracks, float]:
 
 def keep(video: Path, tr: pr.Tracks, seconds: float) -> None:
     """Cache MediaPipe's tracks of ``video`` and the seconds its cold run took."""
-    cache = datasets.cache_dir() / "bench_video" / f"{video.stem}-mediapipe{MEDIAPIPE_VERSION}.npz"
+    cache = _cache(video)
     cache.parent.mkdir(parents=True, exist_ok=True)
     np.savez(cache, uv=tr.points, vis=tr.confidence, world=tr.lifted.points, names=np.array(tr.names), fps=tr.fps,
              seconds=seconds)

@@ -456,7 +456,7 @@ def _draw_all(result, out_dir: Path, tmotion, tracks, joints, animation: bool, w
     (:class:`pinrecon.processes.Beside`) it draws the stick strip and the error plot (with an
     animation: the animation) while this process draws the rest; the child's pictures come
     back as bytes and are written here, with the others (staged with them under an
-    :meth:`~pinrecon.io.atomic.Outputs.commit`)."""
+    :meth:`~pinrecon.io.atomic.Outputs.commit`). Without a child all are drawn here."""
     from ..io.atomic import atomic_write_bytes
     from ..processes import Beside
 
@@ -487,6 +487,8 @@ def _draw_all(result, out_dir: Path, tmotion, tracks, joints, animation: bool, w
     order = [angles, strip, reprojection, error] + ([animation_gif] if animation else [])
     there = [animation_gif] if animation else [strip, error]
     beside = Beside(_rendered, there)
+    if not beside.forked:  # no child: every picture drawn here, straight into the folder
+        there = []
     done = {}
     try:
         for draw in (d for d in order if d not in there):
@@ -496,7 +498,7 @@ def _draw_all(result, out_dir: Path, tmotion, tracks, joints, animation: bool, w
     except BaseException:
         beside.wait()  # its pictures were never written here: nothing of it to remove
         raise
-    for draw, files in zip(there, beside.result()):
+    for draw, files in zip(there, beside.result() if there else ()):
         done[draw] = []
         for name, data in files:
             done[draw].append(atomic_write_bytes(out_dir / name, data))
