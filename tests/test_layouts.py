@@ -19,6 +19,7 @@ from pinrecon import Figure, InputError
 from pinrecon._resources import example_robot_data_robots
 from pinrecon.layouts import (
     LAYOUTS,
+    MEDIAPIPE_OFF_MAP,
     Layout,
     get_layout,
     human_keypoint_map,
@@ -51,8 +52,9 @@ def test_every_layout_points_the_human_can_carry_are_on_its_map(name):
     human = Figure.human(lay.human_map)
     carried = [n for n in lay.names if n in human.keypoint_names]
     missing = [n for n in lay.names if n not in human.keypoint_names]
-    hands = {f"{s}_{f}" for s in ("left", "right") for f in ("pinky", "index", "thumb")}  # MediaPipe's: no fingers
-    assert all(n.startswith("h36m_") or n in hands for n in missing), missing  # and H36M's spine/thorax/neck-nose
+    # MediaPipe's hand points (no fingers) and eye and mouth corners (left off: MEDIAPIPE_OFF_MAP), H36M's
+    # spine/thorax/neck-nose
+    assert all(n.startswith("h36m_") or n in MEDIAPIPE_OFF_MAP for n in missing), missing
     assert len(carried) >= 12
 
 
@@ -180,7 +182,7 @@ def test_feet_points_sit_on_the_foot(body_maps, m):
 
 def test_mediapipe_feet_and_face_points(body_maps):
     """BlazePose's heel and foot tip on the foot mesh (the tip at its front, on the mid-line);
-    its eye corners either side of the eye, its mouth corners below the nose."""
+    its face points those of COCO-17 (the eye and mouth corners on no map)."""
     fig = body_maps["mediapipe33"]
     lo, hi = foot_mesh_box()
     off = {k.name: np.array(k.offset) for k in fig.keypoints_def}
@@ -189,9 +191,11 @@ def test_mediapipe_feet_and_face_points(body_maps):
         for p in (tip, heel):
             assert np.all(p >= lo - 1e-3) and np.all(p <= hi + 1e-3) and p[1] < -0.05
         assert tip[0] > hi[0] - 0.01 and abs(tip[2]) < 0.01 and heel[0] < lo[0] + 0.01
-        inner, eye, outer = (off[f"{side}_eye{s}"][2] * out for s in ("_inner", "", "_outer"))
-        assert 0 < inner < eye < outer
-        assert off[f"mouth_{side}"][1] < off["nose"][1] and off[f"mouth_{side}"][2] * out > 0
+        assert off[f"{side}_eye"][2] * out > 0 and off[f"{side}_ear"][2] * out > 0
+    coco = {k.name: np.array(k.offset) for k in body_maps["coco17"].keypoints_def}
+    face = {n for n in off if fig.keypoints_def[fig.keypoint_names.index(n)].frame == "middle_head"}
+    assert face == {"nose", "left_eye", "right_eye", "left_ear", "right_ear"}
+    assert all(np.allclose(off[n], coco[n]) for n in face)
 
 
 # ---------------------------------------------------------------------------- geometry

@@ -252,3 +252,28 @@ def test_an_unknown_lifter_frame_is_recovered(clip):
         warnings.simplefilter("ignore")
         known = pr.reconstruct(fig, _with_lifted(tracks, X), cam, init=Q, floor="none", calibrate="none")
     assert metrics.mpjpe(res.keypoints3d, known.keypoints3d) < 5.0
+
+
+@pytest.mark.parametrize("source", ["mediapipe", "motionbert"])
+def test_mediapipes_foot_points_are_no_cue(source):
+    """MediaPipe's heels and foot tips (its least accurate 3D, pinrecon.lifted.UNUSED_CUES) make
+    no lifted bone; the same points from another lifter do. Their 2D points are measured either
+    way, and the lifted positions themselves are kept."""
+    fig = pr.Figure.human("mediapipe33")
+    Q = smooth_motion(fig, 6, 30.0, seed=2)
+    cam = side_camera(Q, 45.0)
+    tracks = project_tracks(fig, Q, cam, fps=30.0, noise_px=0.5, seed=2)
+    lifted = Lifted(fig.keypoints(Q), list(tracks.names), None, "unknown", source)  # the truth, world axes
+    cues = lifted.cues()
+    feet = {"left_heel", "right_heel", "left_foot_index", "right_foot_index"}
+    np.testing.assert_array_equal(cues.points, lifted.points)
+    assert (cues.confidence[:, [tracks.names.index(n) for n in feet]] == 0).all() == (source == "mediapipe")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        s = build_problem(fig, pr.Tracks(tracks.points, tracks.names, tracks.fps, lifted=lifted), cam,
+                          calibrate="none")
+    (row,) = [r for r in s.problem.rows if isinstance(r, LiftedPose)]
+    touched = {n for bone in row.names for n in bone.split("-")}
+    assert (touched & feet == set()) == (source == "mediapipe")
+    assert {"left_knee", "left_ankle", "left_shoulder", "right_wrist"} <= touched
+    assert feet <= set(s.problem.views[0].tracks.names)  # the feet still measured in 2D

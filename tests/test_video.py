@@ -153,7 +153,7 @@ def test_video_command_writes_result_exports_and_overlay(video_run):
     for name in ("tracks.json", "result.npz", "motion.bvh", "motion.csv", "motion.trc", "overlay.mp4"):
         assert (out / name).stat().st_size > 0, name
     res = pr.load_result(out / "result.npz")
-    assert res.keypoints3d.shape[0] == N and len(res.figure.keypoint_names) == 27  # the mediapipe33 map
+    assert res.keypoints3d.shape[0] == N and len(res.figure.keypoint_names) == 21  # the mediapipe33 map
 
 
 

@@ -25,9 +25,18 @@ import numpy as np
 from .errors import InputError
 from .io.lifters import LIFTER_FORMATS, guess_lifter_format, read_lifter_npy, read_mmpose3d
 
-__all__ = ["Lifted", "LIFTED_FRAMES", "load_lifted", "LIFTER_FORMATS"]
+__all__ = ["LIFTED_FRAMES", "LIFTER_FORMATS", "UNUSED_CUES", "Lifted", "load_lifted"]
 
 LIFTED_FRAMES = ("camera", "unknown")
+
+#: points whose 3D a reconstruction does not take as cues, per lifter (:attr:`Lifted.source`):
+#: MediaPipe's heels and foot tips, its least accurate world landmarks (the median angle between
+#: its ankle-heel direction and the true one is 39-56 degrees on the four cameras of Pose2Sim's
+#: real trial, against 6-31 for the limbs and the trunk: bench/README.md, bench_video); their 2D
+#: points still place the feet
+UNUSED_CUES: dict[str, tuple[str, ...]] = {
+    "mediapipe": ("left_heel", "right_heel", "left_foot_index", "right_foot_index"),
+}
 
 
 @dataclass(eq=False)
@@ -106,6 +115,16 @@ class Lifted:
                 pts[:, j] = self.points[:, index[n]]
                 conf[:, j] = self.confidence[:, index[n]]
         return Lifted(pts, list(names), conf, self.frame, self.source, self.camera)
+
+    def cues(self) -> Lifted:
+        """The points a reconstruction takes as cues: those :data:`UNUSED_CUES` names for this
+        lifter's ``source`` at confidence 0 (their positions kept)."""
+        unused = [j for j, n in enumerate(self.names) if n in UNUSED_CUES.get(self.source or "", ())]
+        if not unused:
+            return self
+        conf = self.confidence.copy()
+        conf[:, unused] = 0.0
+        return Lifted(self.points, self.names, conf, self.frame, self.source, self.camera)
 
     def frames(self, start: int = 0, stop: int | None = None, step: int = 1) -> Lifted:
         """A frame range, as :meth:`pinrecon.Tracks.frames`."""

@@ -15,6 +15,7 @@ Every output is checked writable and every video readable before the work starts
 from __future__ import annotations
 
 import argparse
+import re
 import sys
 import time
 import warnings
@@ -185,6 +186,7 @@ def run_video(args, tracked=None) -> dict:
 def _run(args, infos, files, stages, t_start, plots, auto, tracked) -> dict:
     """:func:`run_video` from the detector on (``plots``: the :class:`_Plots` started, or None)."""
     from ..arguments import reconstruct_from_args
+    from ..layouts import MEDIAPIPE_OFF_MAP
     from ..video import track_video
 
     tracks, kept = [], [None] * len(args.videos)
@@ -212,9 +214,9 @@ def _run(args, infos, files, stages, t_start, plots, auto, tracked) -> dict:
         args.image_size = [float(infos[0].width), float(infos[0].height)]
     args.fps = None
     with warnings.catch_warnings():  # warnings are said also with --quiet (it silences progress only)
-        # MediaPipe's hand points are on no figure: said in docs/video.md, not on every run
-        warnings.filterwarnings("ignore", message=r"tracks points not on the figure are ignored: \['left_pinky', "
-                                r"'right_pinky', 'left_index', 'right_index', 'left_thumb', 'right_thumb'\]$")
+        # MediaPipe's eye and mouth corners and hand points are on no figure: said in docs/video.md, not on
+        # every run
+        warnings.filterwarnings("ignore", message=re.escape(f"tracks points not on the figure are ignored: {list(MEDIAPIPE_OFF_MAP)}") + "$")
         res = reconstruct_from_args(args, callback=_SolveLine(args.quiet))
     res.save(files["result"])
     written = [files["tracks"], [files["result"]]]

@@ -16,7 +16,7 @@ the body whatever the detector:
 * ``left_big_toe``, ``left_small_toe``, ``left_heel`` and the right ones;
 * MediaPipe's BlazePose points keep MediaPipe's names (``left_eye_inner``, ``mouth_left``,
   ``left_foot_index`` ...); its COCO points, heels and foot tips are on the human's
-  ``mediapipe33`` map, its hand points (pinky, index, thumb) on no map;
+  ``mediapipe33`` map, its eye and mouth corners and hand points (pinky, index, thumb) on no map;
 * points no figure carries keep a layout-specific name (``h36m_spine`` ...).
 
 Whole-body layouts (Halpe-136, COCO-WholeBody-133) keep their body part only: the
@@ -39,18 +39,19 @@ from .._resources import model_path
 from ..errors import InputError
 
 __all__ = [
-    "Layout",
-    "LAYOUTS",
     "BOX",
+    "LAYOUTS",
+    "MEDIAPIPE_OFF_MAP",
+    "Layout",
     "get_layout",
-    "layouts_with",
-    "layout_from_names",
-    "known_point_names",
-    "normalise_point_name",
-    "human_keypoint_maps",
     "human_keypoint_map",
+    "human_keypoint_maps",
     "human_map_for",
     "human_map_for_names",
+    "known_point_names",
+    "layout_from_names",
+    "layouts_with",
+    "normalise_point_name",
     "shared_point_names",
 ]
 
@@ -94,6 +95,13 @@ MEDIAPIPE_33 = (
     "right_pinky", "left_index", "right_index", "left_thumb", "right_thumb", "left_hip", "right_hip",
     "left_knee", "right_knee", "left_ankle", "right_ankle", "left_heel", "right_heel",
     "left_foot_index", "right_foot_index",
+)
+#: MediaPipe's points on no keypoint map of the human, in MediaPipe's order: the eye and mouth
+#: corners (with the nose, eyes and ears they would put 11 points on one rigid head whose detected
+#: positions err together; bench/README.md, bench_video) and the hand points (no fingers)
+MEDIAPIPE_OFF_MAP = (
+    "left_eye_inner", "left_eye_outer", "right_eye_inner", "right_eye_outer", "mouth_left", "mouth_right",
+    "left_pinky", "right_pinky", "left_index", "right_index", "left_thumb", "right_thumb",
 )
 
 

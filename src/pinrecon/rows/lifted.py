@@ -355,7 +355,8 @@ def lifted_rows(figure, views, weights) -> list[LiftedPose]:
     lifted``, names already the figure's), on the reconstruction grid (tracks frame ``i`` is
     frame ``i * view.factor``); none when ``weights.lifted`` is 0 or ``None``. ``"camera"``
     lifters are read in the view's camera axes, ``"unknown"`` ones get their rotation
-    estimated."""
+    estimated. The points a lifter's 3D is not taken for (:data:`pinrecon.lifted.UNUSED_CUES`:
+    MediaPipe's feet) make no bone."""
     w = getattr(weights, "lifted", None)
     if not w:
         return []
@@ -364,6 +365,7 @@ def lifted_rows(figure, views, weights) -> list[LiftedPose]:
         lifted = getattr(v.tracks, "lifted", None)
         if lifted is None:
             continue
+        lifted = lifted.cues()
         pairs = lifted_bones(figure, [n for n in lifted.names if np.any(lifted.confidence[:, lifted.names.index(n)] > 0)])
         if not pairs:
             continue
