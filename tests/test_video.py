@@ -217,11 +217,11 @@ def test_an_overlay_that_fails_stops_the_plots_and_leaves_no_half_written_folder
     plots = tmp_path / "out" / "plots"
     assert not plots.exists() or not any(plots.iterdir())
 
-def test_the_plots_process_starts_before_the_solve_and_ends_without_drawing_when_it_fails(cut, tracked, tmp_path,
-                                                                                           monkeypatch):
-    """The plots' process is started with the command (it imports while the detector runs) and
-    draws only once the result is saved: a solve that fails leaves it to end on its own, with
-    nothing drawn."""
+def test_the_plots_process_starts_after_the_detector_and_ends_without_drawing_when_it_fails(cut, tracked, tmp_path,
+                                                                                             monkeypatch):
+    """The plots' process is started once the detector is done (it imports while the solve runs,
+    not beside the detector's decoding) and draws only once the result is saved: a solve that
+    fails leaves it to end on its own, with nothing drawn."""
     import subprocess
 
     import pinrecon.arguments
@@ -238,11 +238,16 @@ def test_the_plots_process_starts_before_the_solve_and_ends_without_drawing_when
         assert len(procs) == 1 and procs[0].poll() is None  # started before the solve, waiting
         raise InputError("no solution", file="tracks.json")
 
+    def detector(*a, **k):
+        assert not procs  # not yet started while the detector runs
+        return tracked
+
     monkeypatch.setattr(pinrecon.arguments, "reconstruct_from_args", fails)
+    monkeypatch.setattr("pinrecon.video.track_video", detector)
     args = build_parser().parse_args(["video", str(cut), "--out", str(tmp_path / "out"), "--quiet"])
     with warnings.catch_warnings(), pytest.raises(InputError, match="no solution"):
         warnings.simplefilter("ignore")
-        video_module.run_video(args, tracked=[tracked])
+        video_module.run_video(args)
     assert len(procs) == 1 and procs[0].returncode == 0  # told nothing: it ended without drawing
     assert not (tmp_path / "out" / "plots").exists()
 

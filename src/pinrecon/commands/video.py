@@ -58,8 +58,8 @@ def _outputs(out: Path, videos: list[str]) -> dict:
 class _Plots:
     """The plots of a saved result, drawn by ``pinrecon plot`` in a new process (Python, not a
     fork: the detector's and OpenCV's threads make forking unsafe). The process is started
-    with the command, before the detector, and imports pinrecon and matplotlib while the
-    detector leaves a CPU idle; it waits for :meth:`go` (the result saved) and draws while
+    (:meth:`start`) once the detector is done and imports pinrecon and matplotlib while the
+    reconstruction leaves a CPU idle; it waits for :meth:`go` (the result saved) and draws while
     the caller writes the overlay; :meth:`result` waits for it and returns the files. Where
     that process cannot run or fails (a worker of a pool, one CPU, several videos' tracks, an
     error), the plots are drawn in :meth:`result` itself, which then raises any error as it
@@ -74,16 +74,25 @@ class _Plots:
     def __init__(self, result_path: Path, folder: Path, tracks_paths: list[Path]):
         import importlib.util
         import multiprocessing as mp
-        import os
-        import subprocess
 
         from ..processes import usable_cpus
 
         self.folder, self.proc, self.seconds, self.t0 = folder, None, None, time.perf_counter()
-        self.going = False
+        self.going, self._command = False, None
         if len(tracks_paths) != 1 or mp.parent_process() is not None or usable_cpus() < 2 \
                 or importlib.util.find_spec("matplotlib") is None:  # no viz extra: said by result()
             return
+        self._command = (result_path, folder, tracks_paths)
+
+    def start(self) -> None:
+        """Start the process (once the detector is done: its imports then use the CPU the
+        reconstruction leaves idle, not the one decoding the video)."""
+        import os
+        import subprocess
+
+        if self._command is None or self.proc is not None:
+            return
+        result_path, folder, tracks_paths = self._command
         here = str(Path(__file__).resolve().parents[2])  # where this pinrecon was imported from, searched last
         try:
             self.proc = subprocess.Popen([sys.executable, "-c", self.CODE.format(here=here), "plot", str(result_path),
@@ -173,7 +182,7 @@ def run_video(args, tracked=None) -> dict:
     files = _outputs(out, args.videos)
     stages: dict[str, float] = {}
     t_start = time.perf_counter()
-    # started now, it imports while the detector runs; it draws once the result is saved
+    # started once the detector is done (it imports while the reconstruction runs); it draws once the result is saved
     plots = None if args.no_plots else _Plots(files["result"], files["plots"], files["tracks"])
     try:
         return _run(args, infos, files, stages, t_start, plots, auto, tracked)
@@ -207,6 +216,8 @@ def _run(args, infos, files, stages, t_start, plots, auto, tracked) -> dict:
         stages[f"track {Path(video).name}"] = time.perf_counter() - t0
         if not tr.observed.any():
             raise InputError("MediaPipe found no person in any frame", file=video)
+    if plots is not None:
+        plots.start()
 
     t0 = time.perf_counter()
     args.tracks = [str(p) for p in files["tracks"]]
