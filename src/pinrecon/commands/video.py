@@ -69,10 +69,12 @@ class _Plots:
     #: its input closes first: the command failed); once it returned (its pictures written, their
     #: names printed) the process ends at once, without the interpreter's teardown (0.1 s with
     #: matplotlib loaded, which the caller would wait for)
-    CODE = ("import os, signal, sys; signal.signal(signal.SIGINT, signal.default_int_handler); "  # heard even if ignored
+    CODE = ("import os, signal, sys; "
+            "signal.signal(signal.SIGINT, signal.default_int_handler); "  # heard even if ignored here
             "sys.path.append({here!r}); from pinrecon.cli import main; import pinrecon.viz.plots; "
             "import matplotlib.pyplot; code = main() if sys.stdin.readline() == 'go\\n' else 0; "
-            "sys.stdout.flush(); sys.stderr.flush(); os._exit(0 if code is None else code if isinstance(code, int) else 1)")
+            "sys.stdout.flush(); sys.stderr.flush(); "
+            "os._exit(0 if code is None else code if isinstance(code, int) else 1)")
 
     def __init__(self, result_path: Path, folder: Path, tracks_paths: list[Path]):
         import importlib.util
@@ -196,7 +198,8 @@ def run_video(args, tracked=None) -> dict:
 
 
 def _run(args, infos, files, stages, t_start, plots, auto, tracked) -> dict:
-    """:func:`run_video` from the detector on (``plots``: the :class:`_Plots` started, or None)."""
+    """:func:`run_video` from the detector on (``plots``: the :class:`_Plots`, started here once the
+    detector is done, or None)."""
     from ..arguments import reconstruct_from_args
     from ..layouts import MEDIAPIPE_OFF_MAP
     from ..video import track_video
@@ -230,7 +233,8 @@ def _run(args, infos, files, stages, t_start, plots, auto, tracked) -> dict:
     with warnings.catch_warnings():  # warnings are said also with --quiet (it silences progress only)
         # MediaPipe's eye and mouth corners and hand points are on no figure: said in docs/video.md, not on
         # every run
-        warnings.filterwarnings("ignore", message=re.escape(f"tracks points not on the figure are ignored: {list(MEDIAPIPE_OFF_MAP)}") + "$")
+        off_map = f"tracks points not on the figure are ignored: {list(MEDIAPIPE_OFF_MAP)}"
+        warnings.filterwarnings("ignore", message=re.escape(off_map) + "$")
         res = reconstruct_from_args(args, callback=_SolveLine(args.quiet))
     res.save(files["result"])
     written = [files["tracks"], [files["result"]]]
