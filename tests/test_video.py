@@ -61,6 +61,19 @@ def test_frames_decoded_ahead_are_the_same_frames(cut, monkeypatch):
     assert len(got) == N and all(np.array_equal(a, b) for a, b in zip(got, truth))
     assert len(list(iter_frames(cut, 4, ahead=2))) == 4
 
+    # prepare(t, frame) runs in the decoding thread, in order, and is what the caller gets
+    seen = []
+
+    def prepare(t, frame):
+        seen.append((t, threading.current_thread().name))
+        return t, frame[::2, ::2].copy()
+
+    prepared = list(iter_frames(cut, ahead=2, prepare=prepare))
+    assert [t for t, _ in prepared] == list(range(N)) == [t for t, _ in seen]
+    assert {name for _, name in seen} == {"pinrecon-frames"}
+    assert all(np.array_equal(f, truth[t][::2, ::2]) for t, f in prepared)
+    assert [t for t, _ in iter_frames(cut, 3, prepare=prepare)] == [0, 1, 2]  # no thread: the same
+
     it = iter_frames(cut, ahead=2)
     assert np.array_equal(next(it), truth[0])
     it.close()

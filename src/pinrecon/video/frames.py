@@ -11,7 +11,7 @@ from __future__ import annotations
 import os
 import queue
 import threading
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -87,15 +87,22 @@ def video_info(path: str | os.PathLike, *, fps: float | None = None) -> VideoInf
     return VideoInfo(str(path), rate, int(w), int(h), count)
 
 
-def iter_frames(path: str | os.PathLike, max_frames: int | None = None, *, ahead: int = 0) -> Iterator[np.ndarray]:
+def iter_frames(path: str | os.PathLike, max_frames: int | None = None, *, ahead: int = 0,
+                prepare: Callable[[int, np.ndarray], object] | None = None) -> Iterator:
     """The video's frames in order, each an (H, W, 3) uint8 BGR array (OpenCV's order),
     at most ``max_frames``. ``ahead`` > 0: a thread decodes up to that many frames ahead
     of the caller (OpenCV lets go of the GIL while it decodes, so the decoding runs beside
-    the caller's own work on the frames)."""
+    the caller's own work on the frames). ``prepare(t, frame)``: what is yielded instead of
+    frame ``t``, computed in that thread (with ``ahead`` > 0) as the frames decode, in order:
+    work on the frames that lets go of the GIL (OpenCV's colour conversions, resizing) then
+    runs beside the caller's."""
     _, cap = _open(path)
+    frames_read = _read(cap, max_frames)
+    if prepare is not None:
+        frames_read = (prepare(t, frame) for t, frame in enumerate(frames_read))
     if ahead <= 0:
         try:
-            yield from _read(cap, max_frames)
+            yield from frames_read
         finally:
             cap.release()
         return
@@ -104,7 +111,7 @@ def iter_frames(path: str | os.PathLike, max_frames: int | None = None, *, ahead
 
     def reader():
         try:
-            for frame in _read(cap, max_frames):
+            for frame in frames_read:
                 while not stop.is_set():
                     try:
                         frames.put(frame, timeout=0.1)

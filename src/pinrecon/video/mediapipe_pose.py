@@ -116,8 +116,11 @@ class MediaPipePose:
         self._started = False
 
     def detect(self, frame_bgr: np.ndarray):
-        h, w = frame_bgr.shape[:2]
-        rgb = self.cv2.cvtColor(frame_bgr, self.cv2.COLOR_BGR2RGB)
+        return self.detect_rgb(self.cv2.cvtColor(frame_bgr, self.cv2.COLOR_BGR2RGB))
+
+    def detect_rgb(self, rgb: np.ndarray):
+        """:meth:`detect` of a frame already in RGB order (what MediaPipe reads)."""
+        h, w = rgb.shape[:2]
         with warnings.catch_warnings(), (contextlib.nullcontext() if self._started else _quiet_native_stderr()):
             warnings.simplefilter("ignore")  # protobuf's deprecation notes, per frame
             res = self._pose.process(rgb)
@@ -160,7 +163,8 @@ def track_video(
     (:class:`~pinrecon.lifted.Lifted`, metres, ``frame="unknown"``, ``source="mediapipe"``).
 
     ``max_frames`` stops early; ``progress`` draws a bar over the frames on stderr;
-    ``on_frame(t, frame_bgr)`` sees each decoded frame (to reuse the decode). A file that is
+    ``on_frame(t, frame_bgr)`` sees each decoded frame, in order, in the thread that decodes
+    them (to reuse the decode: it must not hold the GIL long). A file that is
     not a video raises :class:`~pinrecon.errors.InputError`; a missing extra
     :class:`~pinrecon.video.MissingVideoExtraError`.
     """
@@ -168,15 +172,20 @@ def track_video(
     total = info.frames if max_frames is None else min(info.frames or max_frames, max_frames)
     uv, vis, world = [], [], []
     name = os.path.basename(str(path))
+    cv2 = require_cv2()
+
+    def prepare(t, frame):  # in the decoding thread, beside the detector (both let go of the GIL)
+        if on_frame is not None:
+            on_frame(t, frame)
+        return cv2.cvtColor(frame, cv2.COLOR_BGR2RGB)
+
     with _quiet_native_stderr() as stderr, MediaPipePose(model_complexity) as pose, \
             FrameProgress(total, f"track {name}", enabled=progress, file=stderr) as bar:
-        for t, frame in enumerate(iter_frames(path, max_frames, ahead=4)):
-            a, b, c = pose.detect(frame)
+        for rgb in iter_frames(path, max_frames, ahead=4, prepare=prepare):
+            a, b, c = pose.detect_rgb(rgb)
             uv.append(a)
             vis.append(b)
             world.append(c)
-            if on_frame is not None:
-                on_frame(t, frame)
             bar.update()
     names = list(MEDIAPIPE_33)
     lifted = Lifted(np.array(world).reshape(-1, len(names), 3), names, np.array(vis).reshape(-1, len(names)),
