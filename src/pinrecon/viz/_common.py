@@ -41,12 +41,25 @@ def require_matplotlib():
     return Figure, FigureCanvasAgg
 
 
-def new_figure(figsize, dpi: float = 100):
-    """A matplotlib Figure with its own Agg canvas (headless, not known to pyplot)."""
+def new_figure(figsize, dpi: float = 100, layout: str | None = "constrained"):
+    """A matplotlib Figure with its own Agg canvas (headless, not known to pyplot);
+    ``layout=None`` for a grid placed by :func:`place_grid` (fixed margins, drawn in half
+    the time of matplotlib's constrained layout)."""
     Figure, FigureCanvasAgg = require_matplotlib()
-    fig = Figure(figsize=figsize, dpi=dpi, layout="constrained")
+    fig = Figure(figsize=figsize, dpi=dpi, layout=layout)
     FigureCanvasAgg(fig)
     return fig
+
+
+def place_grid(fig, nrows: int, ncols: int, *, left: float = 0.6, right: float = 0.15, bottom: float = 0.5,
+               top: float = 0.3, wgap: float = 0.5, hgap: float = 0.5) -> None:
+    """Place ``fig``'s grid of ``nrows`` x ``ncols`` axes with margins and gaps in inches
+    (room for the tick labels, axis labels and titles a plot draws at its font sizes)."""
+    w, h = fig.get_size_inches()
+    aw = max((w - left - right - (ncols - 1) * wgap) / ncols, 1e-3)
+    ah = max((h - top - bottom - (nrows - 1) * hgap) / nrows, 1e-3)
+    fig.subplots_adjust(left=left / w, right=1 - right / w, bottom=bottom / h, top=1 - top / h,
+                        wspace=wgap / aw, hspace=hgap / ah)
 
 
 def save_figure(fig, out: str | os.PathLike, dpi: float | None = None) -> Path:

@@ -42,6 +42,7 @@ from ._common import (
     joint_series,
     legend_handles,
     new_figure,
+    place_grid,
     save_figure,
     second_view_camera,
     skeleton,
@@ -116,8 +117,9 @@ def plot_joint_angles(
     n = len(cols)
     ncols = ncols or (1 if n == 1 else 2 if n <= 4 else 3)
     nrows = math.ceil(n / ncols)
-    fig = new_figure((3.4 * ncols, 2.1 * nrows + 0.4))
+    fig = new_figure((3.4 * ncols, 2.1 * nrows + 0.4), layout=None)
     axes = np.atleast_1d(fig.subplots(nrows, ncols, sharex=True, squeeze=False)).ravel()
+    place_grid(fig, nrows, ncols, left=0.6, bottom=0.45, top=0.3, wgap=0.6, hgap=0.4)
     for k, (name, col) in enumerate(zip(joints, cols)):
         ax = axes[k]
         values, unit = series[col]
@@ -219,8 +221,9 @@ def plot_stick_strip(
         tframes = [tmotion.frame_at(motion.times[f]) for f in frames]
         TP = skeleton_points(tmotion, tsk, tframes)
     n = len(frames)
-    fig = new_figure((1.9 * n + 0.6, 4.8))
+    fig = new_figure((1.9 * n + 0.6, 4.8), layout=None)
     axes = np.atleast_2d(fig.subplots(2, n, squeeze=False))
+    place_grid(fig, 2, n, left=0.65, right=0.1, bottom=0.6, top=0.3, wgap=0.4, hgap=0.35)
     for row, view in enumerate((cam, cam2)):
         uv = view.project(P)
         tuv = view.project(TP) if TP is not None else None
@@ -250,7 +253,7 @@ def plot_stick_strip(
                 ax.set_ylabel(f"{what} ({unit})", fontsize=8)
             elif row == 1 and unit == "m":
                 height_ticks(ax, feet.floor if feet else None, up_w)
-    fig.legend(handles=legend_handles(truth is not None, feet is not None, feet is not None), loc="outside lower center",
+    fig.legend(handles=legend_handles(truth is not None, feet is not None, feet is not None), loc="lower center",
                ncols=6, fontsize=7, frameon=False)
     if out is not None:
         save_figure(fig, out)
@@ -312,8 +315,9 @@ def plot_reprojection(
     rframes = [motion.frame_at(tracks.times[f]) for f in frames]
     P = skeleton_points(motion, sk, rframes)
     n = len(frames)
-    fig = new_figure((3.0 * n + 0.4, 3.6))
+    fig = new_figure((3.0 * n + 0.4, 3.6), layout=None)
     axes = np.atleast_1d(fig.subplots(1, n, squeeze=False)).ravel()
+    place_grid(fig, 1, n, left=0.6, right=0.1, bottom=0.45, top=0.3, wgap=0.45)
     for k, f in enumerate(frames):
         ax = axes[k]
         uv = cam.project(P[k])
@@ -355,8 +359,9 @@ def plot_reprojection_error(result, out: str | os.PathLike | None = None):
     """Mean reprojection error per frame (pixels) of a Result, observed frames only; with
     several cameras, one thin line per camera under the mean over all of them."""
     err = np.asarray(result.reprojection_error_px, float)
-    fig = new_figure((6.0, 2.4))
+    fig = new_figure((6.0, 2.4), layout=None)
     ax = fig.subplots()
+    place_grid(fig, 1, 1, left=0.6, right=0.1, bottom=0.45, top=0.3)
     per = getattr(result, "reprojection_error_px_per_camera", None)
     names = list(getattr(result, "camera_names", None) or [])
     several = per is not None and len(names) > 1 and np.shape(per) == (len(names), len(err))
