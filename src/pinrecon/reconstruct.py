@@ -286,12 +286,10 @@ def reconstruct(
     ``"camera"`` or ``"lengths+camera"`` (default :func:`pinrecon.problem.default_calibrate`;
     ``lengths_from_tracks`` starts one camera's lengths where the tracks measure them).
     ``window``: frames per window of a long clip (:mod:`pinrecon.windowed`, solved on every core; 0: one batch).
-    ``skip``: stages to switch off and ``progress(name)``, called as each starts
-    (:data:`pinrecon.stages.STAGES`). ``lifter``: pinrecon's own lifter (``"auto"``, ``"none"`` or a
-    weights file), joining with the broader prior. Parameters in full: ``docs/reconstruct.md``.
-
-    Returns a :class:`~pinrecon.result.Result`; ``result.stages`` holds a
-    :class:`~pinrecon.stages.StageReport` per stage (time, cost before and after, what changed).
+    ``skip``: stages to switch off; ``progress(name)``: called as each starts (:data:`pinrecon.stages.STAGES`).
+    ``lifter``: pinrecon's own lifter (``"auto"``, ``"none"`` or a weights file), joining with the
+    broader prior. Parameters in full: ``docs/reconstruct.md``. Returns a :class:`~pinrecon.result.Result`;
+    ``result.stages``: a :class:`~pinrecon.stages.StageReport` per stage (time, cost change, what changed).
     """
     skip = check_skip(skip)
     floor, contact, off = _feet_settings(floor, contact)
