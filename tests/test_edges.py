@@ -239,6 +239,27 @@ def test_stick_strip_floor_is_level_and_heights_are_above_it(clip):
     assert height_ticks(ax, floor, np.array([0.0, 0.0, 1.0])) == "height"  # not level: no claim
 
 
+def test_second_view_stands_on_the_floor_when_the_camera_is_rolled():
+    """A video filmed sideways: the auto camera's world is the camera's (+Y its up), and the
+    floor's normal, pointing up to the body, lies nearly along X, a little below the camera's
+    horizon (as Pose2Sim's cam01 turned 90 degrees). The second view's up is the floor's
+    normal, so a head 1.5 m above the feet is drawn above them (it was drawn below: the normal
+    was turned to the camera's up side)."""
+    from pinrecon.cameras import Orthographic
+    from pinrecon.floor import Floor
+    from pinrecon.viz._common import second_view_camera, view_up
+
+    cam = Orthographic.from_view([0.0, 0.0, 1.0], (0.0, 1.0, 0.0), scale=1.0)
+    for side in (-1.0, 1.0):  # rolled either way
+        n = np.array([side, -0.4, -0.3]) / np.linalg.norm([side, -0.4, -0.3])
+        feet = type("Feet", (), {"floor": Floor(n, -1.0)})()
+        np.testing.assert_allclose(view_up(cam, feet), n)
+        view = second_view_camera(cam, None, view_up(cam, feet))
+        p_feet = np.array([0.2, 0.1, 3.0])
+        v_feet, v_head = view.project(np.array([p_feet, p_feet + 1.5 * n]))[:, 1]
+        assert v_feet - v_head == pytest.approx(1.5, abs=1e-9)  # image rows grow downwards
+
+
 def test_links_report_says_when_its_fits_are_not_trustworthy(clip):
     from pinrecon.planarity import links_report
 

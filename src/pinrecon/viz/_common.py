@@ -357,12 +357,11 @@ def second_view_camera(camera, second_view=None, up=None):
 
 def view_up(camera, feet=None) -> np.ndarray:
     """The world up of the pictures' second view: the floor's normal when the result has a
-    floor (turned to the camera's up side), else the coordinate axis nearest the camera's up."""
-    up = camera_up(camera)
+    floor (it points up, to the body's side, whichever way the camera is rolled), else the
+    coordinate axis nearest the camera's up."""
     if feet is None:
-        return up
-    n = np.asarray(feet.floor.n, float)
-    return n if n @ up >= 0 else -n
+        return camera_up(camera)
+    return np.asarray(feet.floor.n, float)
 
 
 def view_unit(camera) -> str:

@@ -2,8 +2,9 @@
 
 Left panel: the input video's frames with the reconstructed skeleton reprojected through the
 result's (fitted) camera; right panel: the same skeleton from the side (the camera turned
-90 degrees about the world's up axis, orthographic, one fixed scale for the clip). Written
-with OpenCV's ``VideoWriter`` (MPEG-4 Part 2, ``mp4v``): the optional ``video`` extra.
+90 degrees about the up axis, the floor's normal when the result has a floor; orthographic,
+one fixed scale for the clip). Written with OpenCV's ``VideoWriter`` (MPEG-4 Part 2,
+``mp4v``): the optional ``video`` extra.
 
 Colours (BGR), fixed so a picture or a test can find them: the figure's left side
 :data:`LEFT_BGR`, right side :data:`RIGHT_BGR`, the middle :data:`CENTRE_BGR`, the keypoints
@@ -21,7 +22,7 @@ from ..errors import InputError
 from ..io.atomic import atomic_path
 from ..video.frames import iter_frames, require_cv2, video_info
 from ..video.progress import FrameProgress
-from ._common import as_motion, second_view_camera, skeleton, skeleton_points
+from ._common import as_motion, second_view_camera, skeleton, skeleton_points, view_up
 
 __all__ = ["CENTRE_BGR", "JOINT_BGR", "LEFT_BGR", "RIGHT_BGR", "KeptFrames", "overlay_scale", "write_overlay"]
 
@@ -120,7 +121,7 @@ def write_overlay(
     sk = skeleton(motion.figure)
     P = skeleton_points(motion, sk, np.arange(len(motion.times)))  # (T, K + hubs, 3)
     uv_cam = cam.project(P) * [sx, sy]
-    side = second_view_camera(cam, second_view)
+    side = second_view_camera(cam, second_view, view_up(cam, motion.feet))  # levelled on the floor, as the plots
     uv_side = side.project(P)
     ok = np.all(np.isfinite(uv_side), axis=2)
     lo, hi = np.nanmin(uv_side[ok], axis=0), np.nanmax(uv_side[ok], axis=0)
