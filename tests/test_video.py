@@ -301,7 +301,7 @@ def test_overlay_stops_where_the_result_does(video_run, tmp_path):
 
     _, out, _ = video_run
     path = write_overlay(pr.load_result(out / "result.npz"), data_file("pose2sim-balancing/videos/cam01.mp4"),
-                         tmp_path / "o.mp4", max_height=None)
+                         tmp_path / "o.mp4", max_height=None, max_width=None)
     cap = cv2.VideoCapture(str(path))
     assert int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) == N
     assert (cap.get(cv2.CAP_PROP_FRAME_WIDTH), cap.get(cv2.CAP_PROP_FRAME_HEIGHT)) == (2 * 1080, 1920)
@@ -388,6 +388,28 @@ def test_bad_input_is_one_clear_error(cut, tmp_path, capsys):
 
     assert main(["video", str(cut), str(cut), "--out", str(tmp_path / "o2")]) == 2
     assert "--calibration" in capsys.readouterr().err
+    assert main(["video", str(cut), "--out", str(tmp_path / "o3"), "--overlay-height", "0"]) == 2
+    assert "--overlay-height" in capsys.readouterr().err and not (tmp_path / "o3").exists()
+
+
+def test_overlay_panels_fit_a_square_by_default_or_take_the_height_given():
+    """Each panel within 960 x 960 by default, whatever the orientation (a landscape video's
+    overlay was 3412 x 960: four times the pixels to encode); ``--overlay-height`` sets the
+    height alone; never enlarged; even sizes."""
+    from types import SimpleNamespace
+
+    from pinrecon.commands.video import _overlay_size
+    from pinrecon.video import VideoInfo
+    from pinrecon.viz.overlay import KeptFrames
+
+    def size(w, h, height=None):
+        return KeptFrames(VideoInfo("v.mp4", 30.0, w, h, 10), **_overlay_size(SimpleNamespace(overlay_height=height))).size
+
+    assert size(1080, 1920) == (540, 960)
+    assert size(1920, 1080) == (960, 540)
+    assert size(1920, 1080, 720) == (1280, 720)
+    assert size(640, 360) == (640, 360)
+    assert size(641, 361, 1000) == (640, 360)  # to even sizes
 
 
 def test_missing_extra_names_it(cut, tmp_path, capsys, monkeypatch):

@@ -150,13 +150,23 @@ class _Plots:
         return plot_result(res, self.folder, tracks=tracks if len(tracks) > 1 else tracks[0], animation=False)
 
 
+def _overlay_size(args) -> dict:
+    """The overlay panels' bounds: ``--overlay-height`` rows, or by default each panel within
+    :data:`pinrecon.viz.overlay.PANEL_SIDE` pixels square."""
+    from ..viz.overlay import PANEL_SIDE
+
+    if args.overlay_height is None:
+        return {"max_height": PANEL_SIDE, "max_width": PANEL_SIDE}
+    return {"max_height": args.overlay_height, "max_width": None}
+
+
 def _write_overlays(res, args, paths, tracks, kept) -> tuple[list[Path], float]:
     """Each video's overlay (``paths``, in the videos' order) and the seconds they took
     (``kept``: each video's frames kept by the detector's pass, or None)."""
     from ..viz.overlay import write_overlay
 
     t0 = time.perf_counter()
-    out = [write_overlay(res, video, paths[i], camera_index=i, tracks=tracks[i], max_height=args.overlay_height,
+    out = [write_overlay(res, video, paths[i], camera_index=i, tracks=tracks[i], **_overlay_size(args),
                          progress=not args.quiet, frames=kept[i]) for i, video in enumerate(args.videos)]
     return out, time.perf_counter() - t0
 
@@ -170,6 +180,8 @@ def run_video(args, tracked=None) -> dict:
     from ..video import require_mediapipe, video_info
 
     check_video_options(args)
+    if args.overlay_height is not None and args.overlay_height < 16:
+        raise InputError(f"must be at least 16 pixels, got {args.overlay_height}", field="--overlay-height")
     if tracked is None:
         require_mediapipe()
     if args.calibration:
@@ -213,7 +225,9 @@ def _run(args, infos, files, stages, t_start, plots, auto, tracked) -> dict:
             if not args.no_overlay:  # the overlay's frames kept as the detector decodes them (short videos)
                 from ..viz.overlay import KeptFrames
 
-                kept[i] = KeptFrames(info, args.overlay_height, budget=KeptFrames.BUDGET // len(args.videos))
+                size = _overlay_size(args)
+                kept[i] = KeptFrames(info, size["max_height"], budget=KeptFrames.BUDGET // len(args.videos),
+                                     max_width=size["max_width"])
             tr = track_video(video, fps=args.fps, max_frames=args.max_frames, model_complexity=args.model_complexity,
                              progress=not args.quiet, on_frame=kept[i])
         tr.lifted.camera = i
@@ -295,8 +309,9 @@ def register(sub) -> None:
             action.help = FPS_HELP
         elif action.dest in ("layout", "person"):  # a tracks file's options: MediaPipe follows one person
             action.help = argparse.SUPPRESS
-    p.add_argument("--overlay-height", type=int, default=960, metavar="PX",
-                   help="height of the overlay video in pixels (the input scaled down to it; default 960)")
+    p.add_argument("--overlay-height", type=int, default=None, metavar="PX",
+                   help="height of the overlay video in pixels (the input scaled down to it); default: each of its "
+                   "two panels within 960 x 960 (a 1080 x 1920 video gives 1080 x 960, a 1920 x 1080 one 1920 x 540)")
     p.add_argument("--no-overlay", action="store_true", help="skip the overlay video")
     p.add_argument("--no-plots", action="store_true", help="skip the plots")
     p.add_argument("--quiet", action="store_true", help="no progress output (the summary and warnings are still "

@@ -24,7 +24,8 @@ from ..video.frames import iter_frames, require_cv2, video_info
 from ..video.progress import FrameProgress
 from ._common import as_motion, second_view_camera, skeleton, skeleton_points, view_up
 
-__all__ = ["CENTRE_BGR", "JOINT_BGR", "LEFT_BGR", "RIGHT_BGR", "KeptFrames", "overlay_scale", "write_overlay"]
+__all__ = ["CENTRE_BGR", "JOINT_BGR", "LEFT_BGR", "PANEL_SIDE", "RIGHT_BGR", "KeptFrames", "overlay_scale",
+           "write_overlay"]
 
 LEFT_BGR = (255, 140, 0)  # azure: the figure's left
 RIGHT_BGR = (40, 40, 230)  # red: its right
@@ -34,20 +35,29 @@ DETECTION_BGR = (255, 255, 255)
 PANEL_BGR = (40, 40, 40)
 
 
-def overlay_scale(width: int, height: int, max_height: int | None) -> float:
-    """The factor from the input video's pixels to the overlay's (at most ``max_height``
-    rows, never enlarged; sizes rounded to even numbers, as MPEG-4 wants)."""
-    if max_height is None or height <= max_height:
-        return 1.0
-    return max_height / height
+#: by default each of the overlay's two panels fits in a square of this many pixels: a
+#: 1080 x 1920 portrait video gives 540 x 960 panels, a 1920 x 1080 landscape one 960 x 540
+PANEL_SIDE = 960
+
+
+def overlay_scale(width: int, height: int, max_height: int | None, max_width: int | None = None) -> float:
+    """The factor from the input video's pixels to an overlay panel's (at most ``max_height``
+    rows and ``max_width`` columns, None: no bound; never enlarged; sizes rounded to even
+    numbers, as MPEG-4 wants)."""
+    s = 1.0
+    if max_height is not None:
+        s = min(s, max_height / height)
+    if max_width is not None:
+        s = min(s, max_width / width)
+    return s
 
 
 def _even(x: float) -> int:
     return max(2, round(x / 2) * 2)
 
 
-def _overlay_size(width: int, height: int, max_height: int | None) -> tuple[int, int]:
-    s = overlay_scale(width, height, max_height)
+def _overlay_size(width: int, height: int, max_height: int | None, max_width: int | None) -> tuple[int, int]:
+    s = overlay_scale(width, height, max_height, max_width)
     return _even(width * s), _even(height * s)
 
 
@@ -58,7 +68,7 @@ class KeptFrames:
     :attr:`BUDGET`); a video with more lets them all go (:attr:`frames` is then None) and the
     overlay decodes it as usual.
 
-    >>> kept = KeptFrames(video_info("clip.mp4"), max_height=960)   # doctest: +SKIP
+    >>> kept = KeptFrames(video_info("clip.mp4"))                   # doctest: +SKIP
     >>> tracks = track_video("clip.mp4", on_frame=kept)              # doctest: +SKIP
     >>> write_overlay(result, "clip.mp4", "overlay.mp4", frames=kept)  # doctest: +SKIP
     """
@@ -66,8 +76,9 @@ class KeptFrames:
     #: bytes of scaled frames kept at most: 345 frames of 960 x 540
     BUDGET = 512 * 2**20
 
-    def __init__(self, info, max_height: int | None = 960, budget: int | None = None):
-        self.size = _overlay_size(info.width, info.height, max_height)
+    def __init__(self, info, max_height: int | None = PANEL_SIDE, budget: int | None = None,
+                 max_width: int | None = PANEL_SIDE):
+        self.size = _overlay_size(info.width, info.height, max_height, max_width)
         self.budget = self.BUDGET if budget is None else int(budget)
         self.frames: list[np.ndarray] | None = []
         self._cv2 = require_cv2()
@@ -90,7 +101,8 @@ def write_overlay(
     *,
     camera_index: int = 0,
     tracks=None,
-    max_height: int | None = 960,
+    max_height: int | None = PANEL_SIDE,
+    max_width: int | None = PANEL_SIDE,
     second_view: float | None = None,
     progress: bool = False,
     frames: KeptFrames | None = None,
@@ -101,10 +113,11 @@ def write_overlay(
     which of its cameras filmed ``video`` (several-camera solves). ``tracks`` : that camera's
     :class:`~pinrecon.Tracks`, drawn as white rings. The video's frame ``t`` shows the result
     at the nearest time ``t / fps``; the overlay stops at the result's last frame (or the
-    tracks' last). ``max_height`` : the overlay's height in pixels (the
-    input is scaled down to it, never up; ``None``: the input's). ``second_view`` : the side
-    panel's angle about the up axis, degrees (default 90). ``frames``: the video's frames kept
-    by :class:`KeptFrames` while the detector read it (the same ``max_height``); used
+    tracks' last). ``max_height``, ``max_width`` : each panel's largest size in pixels (the
+    input is scaled down to fit, never up; ``None``: no bound; by default both
+    :data:`PANEL_SIDE`). ``second_view`` : the side panel's angle about the up axis, degrees
+    (default 90). ``frames``: the video's frames kept by :class:`KeptFrames` while the
+    detector read it (the same sizes); used
     instead of decoding the video again when it holds every frame drawn. Returns the path written
     (atomically); the file holds one frame per input frame, ``2 W x H`` pixels after scaling.
     """
@@ -115,7 +128,7 @@ def write_overlay(
         raise InputError(f"the result has {len(cams)} camera(s); no camera {camera_index}", field="camera_index")
     cam = cams[camera_index]
     info = video_info(video)
-    W, H = _overlay_size(info.width, info.height, max_height)
+    W, H = _overlay_size(info.width, info.height, max_height, max_width)
     sx, sy = W / info.width, H / info.height
 
     sk = skeleton(motion.figure)
