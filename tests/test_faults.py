@@ -115,6 +115,25 @@ def test_no_repair_on_a_clean_clip(scene):
     assert len(res.extras["outlier_frames"]) == 0
 
 
+def test_frames_the_detector_missed_are_said_in_the_summary(scene):
+    """Frames 20-29 without any 2D point (a detector that found nobody) are named as not
+    observed; the clean clip, and a single missing frame (a gap under 0.1 s), say nothing."""
+    from pinrecon.result import unobserved_lines
+
+    fig, Q, cam, P, uv, keys = scene
+    gap = uv.copy()
+    gap[20:30] = np.nan
+    gap[45] = np.nan
+    res = _reconstruct(fig, pr.Tracks(gap, NAMES, FPS, np.full((T, len(NAMES)), 0.9)), cam, keys)
+    said = res.summary()
+    assert "not observed: 10 of 60 frames have no 2D point" in said and "frames 20-29 (0.67-0.97 s)" in said
+    assert "frames 45-45" not in said
+    np.testing.assert_array_equal(np.flatnonzero(~res.observed_frames), [*range(20, 30), 45])
+    assert unobserved_lines(np.ones(T, bool), FPS) == []
+    every_other = np.arange(4 * T) % 2 == 0  # a result at twice the tracks' rate: nothing to say
+    assert unobserved_lines(every_other, 2 * FPS) == []
+
+
 def test_outliers_reported_and_down_weighted(scene):
     fig, Q, cam, P, uv, keys = scene
     bad = uv.copy()

@@ -179,6 +179,8 @@ class Result:
         lines += self.faults_summary()
         lines += stability_lines(self.extras, self.fps)
         lines += lifted_lines(self.extras, self.fps)
+        if self.cameras:  # a fit to 3D markers sees no image
+            lines += unobserved_lines(self.observed_frames, self.fps)
         return "\n".join(lines)
 
     def stages_summary(self) -> list[str]:
@@ -625,6 +627,33 @@ def lifted_lines(extras, fps: float, limit: int = 6) -> list[str]:
     for b, a, e, m in spans[np.argsort(-(spans[:, 2] - spans[:, 1]))][:limit]:
         lines.append(f"  {names[int(b)]}: frames {int(a)}-{int(e) - 1} ({a / fps:.2f}-{(e - 1) / fps:.2f} s), "
                      f"up to {m:.0f} degrees")
+    if len(spans) > limit:
+        lines.append(f"  ... and {len(spans) - limit} more")
+    return lines
+
+
+#: the summary names the spans of frames without a 2D observation lasting at least this long
+#: (shorter gaps, and a result's frames between the tracks' at a higher ``fps_out``, are
+#: filled by the smoothing like any interpolation)
+UNOBSERVED_S = 0.1
+
+
+def unobserved_lines(observed, fps: float, limit: int = 6) -> list[str]:
+    """The summary's lines for the spans of at least :data:`UNOBSERVED_S` seconds in which no
+    camera observed a point (a detector that found nobody): the motion there is not measured."""
+    seen = np.asarray(observed, bool)
+    if not len(seen) or not seen.any():
+        return []
+    edges = np.flatnonzero(np.diff(np.r_[0, (~seen).astype(int), 0]))
+    spans = [(a, b) for a, b in zip(edges[::2], edges[1::2]) if (b - a) / fps >= UNOBSERVED_S]
+    if not spans:
+        return []
+    n = sum(b - a for a, b in spans)
+    lines = [f"not observed: {n} of {len(seen)} frames have no 2D point, in spans of {UNOBSERVED_S:g} s or more; the "
+             "motion there is not measured: the smoothing, the joint limits and the pose prior carry it "
+             "(result.observed_frames)"]
+    for a, b in sorted(spans, key=lambda ab: ab[0] - ab[1])[:limit]:
+        lines.append(f"  frames {a}-{b - 1} ({a / fps:.2f}-{(b - 1) / fps:.2f} s)")
     if len(spans) > limit:
         lines.append(f"  ... and {len(spans) - limit} more")
     return lines
