@@ -649,9 +649,9 @@ def unobserved_lines(observed, fps: float, limit: int = 6) -> list[str]:
     if not spans:
         return []
     n = sum(b - a for a, b in spans)
-    lines = [f"not observed: {n} of {len(seen)} frames have no 2D point, in spans of {UNOBSERVED_S:g} s or more; the "
-             "motion there is not measured: the smoothing, the joint limits and the pose prior carry it "
-             "(result.observed_frames)"]
+    lines = [(f"not observed: {n} of {len(seen)} frames have no 2D point, in spans of {UNOBSERVED_S:g} s or more; the "
+              "motion there is not measured: the smoothing, the joint limits and the pose prior carry it "
+              "(result.observed_frames)")]
     for a, b in sorted(spans, key=lambda ab: ab[0] - ab[1])[:limit]:
         lines.append(f"  frames {a}-{b - 1} ({a / fps:.2f}-{(b - 1) / fps:.2f} s)")
     if len(spans) > limit:
