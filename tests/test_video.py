@@ -412,6 +412,21 @@ def test_overlay_panels_fit_a_square_by_default_or_take_the_height_given():
     assert size(641, 361, 1000) == (640, 360)  # to even sizes
 
 
+def test_mediapipe_is_imported_without_matplotlib_which_stays_importable():
+    """MediaPipe's package imports matplotlib.pyplot for drawing helpers its Pose never uses (0.3 s
+    of every ``pinrecon video``): pinrecon imports it without them; afterwards matplotlib imports
+    as usual, and MediaPipe's helpers reach the real pyplot. A fresh interpreter: this one may hold
+    matplotlib already."""
+    import subprocess
+
+    code = ("import sys; from pinrecon.video.mediapipe_pose import _import_mediapipe; mp = _import_mediapipe(); "
+            "print('matplotlib' in sys.modules, 'matplotlib.pyplot' in sys.modules); "
+            "import matplotlib; matplotlib.use('Agg'); import matplotlib.pyplot as plt; "
+            "print(mp.solutions.drawing_utils.plt.figure is plt.figure, type(plt.figure(figsize=(1, 1))).__name__)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
+    assert out == ["False", "False", "True", "Figure"]
+
+
 def test_missing_extra_names_it(cut, tmp_path, capsys, monkeypatch):
     monkeypatch.setitem(sys.modules, "mediapipe", None)  # import mediapipe now raises ImportError
     assert main(["track", str(cut), "--out", str(tmp_path / "t.json")]) == 2

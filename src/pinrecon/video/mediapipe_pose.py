@@ -20,6 +20,7 @@ from __future__ import annotations
 import contextlib
 import os
 import sys
+import types
 import warnings
 from collections.abc import Callable
 
@@ -51,6 +52,36 @@ def require_mediapipe() -> None:
         raise MissingVideoExtraError(f"tracking a video needs MediaPipe {MEDIAPIPE_VERSION}: {EXTRA_HINT}")
 
 
+class _Deferred(types.ModuleType):
+    """A stand-in for a module while another package is imported: any attribute asked of it
+    later comes from the real module, imported then."""
+
+    def __getattr__(self, attr):
+        import importlib
+
+        if sys.modules.get(self.__name__) is self:  # still standing in: the real one is not importable now
+            raise AttributeError(attr)
+        return getattr(importlib.import_module(self.__name__), attr)
+
+
+@contextlib.contextmanager
+def _without_matplotlib():
+    """MediaPipe's package imports its drawing helpers, which import matplotlib.pyplot (0.3 s, on
+    the critical path of ``pinrecon video``, whose plots are drawn in another process); its Pose
+    solution never draws. While MediaPipe is imported, ``matplotlib`` and ``matplotlib.pyplot``
+    are stand-ins (:class:`_Deferred`) where not imported yet; they leave ``sys.modules`` after,
+    so the next ``import matplotlib`` is the real one, and MediaPipe's ``plt`` asks it then."""
+    names = [n for n in ("matplotlib", "matplotlib.pyplot") if n not in sys.modules]
+    for name in names:
+        sys.modules[name] = _Deferred(name)
+    try:
+        yield
+    finally:
+        for name in names:
+            if isinstance(sys.modules.get(name), _Deferred):
+                del sys.modules[name]
+
+
 def _import_mediapipe():
     # MediaPipe's C++ logs (glog, TensorFlow Lite) go to stderr unless told otherwise
     os.environ.setdefault("GLOG_minloglevel", "2")
@@ -58,7 +89,8 @@ def _import_mediapipe():
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         try:
-            import mediapipe as mp
+            with _without_matplotlib():
+                import mediapipe as mp
         except ImportError as exc:
             raise MissingVideoExtraError(
                 f"tracking a video needs MediaPipe {MEDIAPIPE_VERSION} ({exc}): {EXTRA_HINT}") from None
