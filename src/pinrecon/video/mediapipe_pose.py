@@ -64,14 +64,19 @@ class _Deferred(types.ModuleType):
         return getattr(importlib.import_module(self.__name__), attr)
 
 
+#: modules MediaPipe's package imports and its Pose solution never uses: matplotlib.pyplot, for its
+#: drawing helpers (0.3 s on the critical path of ``pinrecon video``, whose plots are drawn in
+#: another process). Not its Tasks API (0.08 s): ``mediapipe.tasks`` is bound to it by name, and a
+#: stand-in would lose that binding once the real one is imported
+UNUSED_BY_POSE = ("matplotlib", "matplotlib.pyplot")
+
+
 @contextlib.contextmanager
-def _without_matplotlib():
-    """MediaPipe's package imports its drawing helpers, which import matplotlib.pyplot (0.3 s, on
-    the critical path of ``pinrecon video``, whose plots are drawn in another process); its Pose
-    solution never draws. While MediaPipe is imported, ``matplotlib`` and ``matplotlib.pyplot``
-    are stand-ins (:class:`_Deferred`) where not imported yet; they leave ``sys.modules`` after,
-    so the next ``import matplotlib`` is the real one, and MediaPipe's ``plt`` asks it then."""
-    names = [n for n in ("matplotlib", "matplotlib.pyplot") if n not in sys.modules]
+def _deferred(names=UNUSED_BY_POSE):
+    """While MediaPipe is imported, the modules ``names`` not imported yet are stand-ins
+    (:class:`_Deferred`); they leave ``sys.modules`` after, so the next import of one is the real
+    one, and what MediaPipe kept of them asks the real one when used."""
+    names = [n for n in names if n not in sys.modules]
     for name in names:
         sys.modules[name] = _Deferred(name)
     try:
@@ -89,7 +94,7 @@ def _import_mediapipe():
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         try:
-            with _without_matplotlib():
+            with _deferred():
                 import mediapipe as mp
         except ImportError as exc:
             raise MissingVideoExtraError(
