@@ -70,7 +70,7 @@ def cmd_track(args) -> int:
     info = video_info(args.video, fps=args.fps)
     t0 = time.perf_counter()
     tracks = track_video(args.video, fps=args.fps, max_frames=args.max_frames,
-                         model_complexity=args.model_complexity, progress=not args.quiet)
+                         model_complexity=args.model_complexity, progress=not args.quiet, info=info)
     dt = time.perf_counter() - t0
     tracks.save(args.out)
     if not args.quiet:

@@ -229,7 +229,7 @@ def _run(args, infos, files, stages, t_start, plots, auto, tracked) -> dict:
                 kept[i] = KeptFrames(info, size["max_height"], budget=KeptFrames.BUDGET // len(args.videos),
                                      max_width=size["max_width"])
             tr = track_video(video, fps=args.fps, max_frames=args.max_frames, model_complexity=args.model_complexity,
-                             progress=not args.quiet, on_frame=kept[i])
+                             progress=not args.quiet, on_frame=kept[i], info=info)
         tr.lifted.camera = i
         tr.save(files["tracks"][i])
         tracks.append(tr)

@@ -29,7 +29,14 @@ import numpy as np
 from ..layouts import MEDIAPIPE_33
 from ..lifted import Lifted
 from ..tracks import Tracks
-from .frames import EXTRA_HINT, MissingVideoExtraError, iter_frames, require_cv2, video_info
+from .frames import (
+    EXTRA_HINT,
+    MissingVideoExtraError,
+    VideoInfo,
+    iter_frames,
+    require_cv2,
+    video_info,
+)
 from .progress import FrameProgress
 
 __all__ = ["MEDIAPIPE_VERSION", "MediaPipePose", "require_mediapipe", "track_video"]
@@ -193,6 +200,7 @@ def track_video(
     model_complexity: int = 1,
     progress: bool = False,
     on_frame: Callable[[int, np.ndarray], None] | None = None,
+    info: VideoInfo | None = None,
 ) -> Tracks:
     """Run MediaPipe Pose over the video at ``path``: :class:`~pinrecon.Tracks` of its 33
     landmarks in pixels (layout ``"mediapipe33"``, confidence = visibility, ``fps`` the
@@ -201,11 +209,13 @@ def track_video(
 
     ``max_frames`` stops early; ``progress`` draws a bar over the frames on stderr;
     ``on_frame(t, frame_bgr)`` sees each decoded frame, in order, in the thread that decodes
-    them (to reuse the decode: it must not hold the GIL long). A file that is
+    them (to reuse the decode: it must not hold the GIL long). ``info``: the video's
+    :func:`~pinrecon.video.video_info` (with the same ``fps``) when the caller has it, which
+    saves opening the file once more. A file that is
     not a video raises :class:`~pinrecon.errors.InputError`; a missing extra
     :class:`~pinrecon.video.MissingVideoExtraError`.
     """
-    info = video_info(path, fps=fps)
+    info = video_info(path, fps=fps) if info is None else info
     total = info.frames if max_frames is None else min(info.frames or max_frames, max_frames)
     uv, vis, world = [], [], []
     name = os.path.basename(str(path))
