@@ -23,21 +23,18 @@ import sys
 import types
 import warnings
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..layouts import MEDIAPIPE_33
 from ..lifted import Lifted
 from ..tracks import Tracks
-from .frames import (
-    EXTRA_HINT,
-    MissingVideoExtraError,
-    VideoInfo,
-    iter_frames,
-    require_cv2,
-    video_info,
-)
+from .frames import EXTRA_HINT, MissingVideoExtraError, iter_frames, require_cv2, video_info
 from .progress import FrameProgress
+
+if TYPE_CHECKING:
+    from .frames import VideoInfo
 
 __all__ = ["MEDIAPIPE_VERSION", "MediaPipePose", "require_mediapipe", "track_video"]
 
