@@ -412,6 +412,42 @@ def test_overlay_panels_fit_a_square_by_default_or_take_the_height_given():
     assert size(641, 361, 1000) == (640, 360)  # to even sizes
 
 
+def test_a_small_person_in_a_wide_shot_is_found_in_a_crop(cut, tracked, tmp_path, capsys):
+    """The cut shrunk to 0.3 of its size in the middle of a black frame as large: MediaPipe finds
+    nobody in it (the error says why and names --crop); run on a crop around the person it finds
+    them in every frame, and the landmarks are the whole frame's pixels: 0.3 times the full-size
+    video's, shifted by where the small picture sits, to a few pixels. A crop outside the frame,
+    or with two videos, is refused before any work."""
+    from pinrecon.video import track_video
+
+    cap = cv2.VideoCapture(str(cut))
+    frames = [cap.read()[1] for _ in range(N)]
+    cap.release()
+    H, W = frames[0].shape[:2]
+    h, w, y0, x0 = int(0.3 * H), int(0.3 * W), 900, 400
+    small = tmp_path / "small.mp4"
+    out = cv2.VideoWriter(str(small), cv2.VideoWriter_fourcc(*"mp4v"), 60.0, (W, H))
+    for f in frames:
+        canvas = np.zeros_like(f)
+        canvas[y0:y0 + h, x0:x0 + w] = cv2.resize(f, (w, h), interpolation=cv2.INTER_AREA)
+        out.write(canvas)
+    out.release()
+
+    assert main(["video", str(small), "--out", str(tmp_path / "o"), "--quiet", "--no-plots"]) == 2
+    assert "--crop X Y W H" in capsys.readouterr().err
+    found = track_video(small, crop=(x0 - 20, y0 - 20, w + 40, h + 40))
+    assert found.observed.all(axis=1).sum() == N
+    body = [found.names.index(n) for n in BODY]
+    truth = tracked.points[:, body] * [w / W, h / H] + [x0, y0]
+    assert np.nanmedian(np.linalg.norm(found.points[:, body] - truth, axis=-1)) < 3.0  # pixels of the small picture
+
+    assert main(["video", str(small), "--out", str(tmp_path / "o2"), "--crop", "900", "0", "400", "100"]) == 2
+    assert "reaches outside the 1080 x 1920 frame" in capsys.readouterr().err
+    assert main(["video", str(small), str(small), "--out", str(tmp_path / "o3"), "--crop", "0", "0", "100", "100",
+                 "--calibration", "x.toml"]) == 2
+    assert "--crop" in capsys.readouterr().err and not (tmp_path / "o3").exists()
+
+
 def test_mediapipe_is_imported_without_matplotlib_which_stays_importable():
     """MediaPipe's package imports matplotlib.pyplot for drawing helpers its Pose never uses (0.3 s
     of every ``pinrecon video``): pinrecon imports it without them; afterwards matplotlib imports

@@ -14,7 +14,7 @@ from pathlib import Path
 
 from ..errors import InputError
 
-__all__ = ["add_video_options", "check_video_options", "check_writable", "cmd_track", "register"]
+__all__ = ["add_video_options", "check_crop", "check_video_options", "check_writable", "cmd_track", "register"]
 
 
 def check_writable(path: str | os.PathLike, *, folder: bool = False) -> Path:
@@ -39,6 +39,10 @@ def check_writable(path: str | os.PathLike, *, folder: bool = False) -> Path:
 
 FPS_HELP = "the video's frame rate, when its file stores none or a wrong one"
 
+#: the error of a video in which MediaPipe found nobody
+NOBODY = ("MediaPipe found no person in any frame (it finds one who fills much of its image: a small "
+          "person in a wide shot is missed; --crop X Y W H runs it on the part of the frame they move in)")
+
 
 def add_video_options(p, *, fps: bool = True) -> None:
     """The detector's options, shared by ``track`` and ``video`` (``fps=False``: the parser
@@ -46,17 +50,33 @@ def add_video_options(p, *, fps: bool = True) -> None:
     if fps:
         p.add_argument("--fps", type=float, help=FPS_HELP)
     p.add_argument("--max-frames", type=int, metavar="N", help="only the first N frames")
+    p.add_argument("--crop", type=int, nargs=4, metavar=("X", "Y", "W", "H"),
+                   help="run the detector on this part of each frame only (pixels: left, top, width, height): "
+                   "MediaPipe finds a person who fills much of its image and misses a small one in a wide shot; "
+                   "the tracks stay in the whole frame's pixels")
     p.add_argument("--model-complexity", type=int, choices=(0, 1, 2), default=1,
                    help="MediaPipe Pose's model: 1 full (the default: in MediaPipe's wheel, offline), 0 lite or "
                    "2 heavy (MediaPipe downloads those on first use)")
 
 
 def check_video_options(args) -> None:
-    """``--max-frames`` and ``--fps`` in range, else one InputError."""
+    """``--max-frames``, ``--fps`` and ``--crop`` in range, else one InputError (the crop
+    within each video's frame: :func:`check_crop`)."""
     if args.max_frames is not None and args.max_frames < 1:
         raise InputError(f"must be at least 1, got {args.max_frames}", field="--max-frames")
     if args.fps is not None and not 0 < args.fps < 1e4:
         raise InputError(f"must be a frame rate in (0, 10000), got {args.fps}", field="--fps")
+    crop = getattr(args, "crop", None)
+    if crop is not None and (min(crop[:2]) < 0 or min(crop[2:]) < 16):
+        raise InputError(f"needs X, Y >= 0 and W, H >= 16 pixels, got {' '.join(map(str, crop))}", field="--crop")
+
+
+def check_crop(crop, info) -> None:
+    """``--crop`` (X, Y, W, H) within the frame of the video ``info`` describes, else one
+    InputError naming the video."""
+    if crop is not None and (crop[0] + crop[2] > info.width or crop[1] + crop[3] > info.height):
+        raise InputError(f"--crop {' '.join(map(str, crop))} reaches outside the {info.width} x {info.height} frame",
+                         file=info.path, field="--crop")
 
 
 def cmd_track(args) -> int:
@@ -68,13 +88,17 @@ def cmd_track(args) -> int:
     if Path(args.out).suffix.lower() not in (".json", ".npz"):
         raise InputError("the tracks file is .json or .npz", file=args.out, field="--out")
     info = video_info(args.video, fps=args.fps)
+    check_crop(args.crop, info)
     t0 = time.perf_counter()
     tracks = track_video(args.video, fps=args.fps, max_frames=args.max_frames,
-                         model_complexity=args.model_complexity, progress=not args.quiet, info=info)
+                         model_complexity=args.model_complexity, progress=not args.quiet, info=info,
+                         crop=args.crop)
     dt = time.perf_counter() - t0
     tracks.save(args.out)
+    seen = int(tracks.observed.any(axis=1).sum())
+    if not seen:  # said also with --quiet: the file holds no point
+        print(f"pinrecon track: warning: {NOBODY}", file=sys.stderr)
     if not args.quiet:
-        seen = int(tracks.observed.any(axis=1).sum())
         print(f"pinrecon track: {tracks.T} frames of {info.width} x {info.height} at {tracks.fps:g} fps in {dt:.1f} s "
               f"({tracks.T / max(dt, 1e-9):.1f} frames/s); a person in {seen} of them", file=sys.stderr)
         print(f"wrote {args.out}", file=sys.stderr)

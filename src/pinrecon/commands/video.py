@@ -22,7 +22,14 @@ import warnings
 from pathlib import Path
 
 from ..errors import InputError
-from .track import FPS_HELP, add_video_options, check_video_options, check_writable
+from .track import (
+    FPS_HELP,
+    NOBODY,
+    add_video_options,
+    check_crop,
+    check_video_options,
+    check_writable,
+)
 
 __all__ = ["cmd_video", "register", "run_video"]
 
@@ -195,6 +202,10 @@ def run_video(args, tracked=None) -> dict:
         raise InputError(f"{len(args.videos)} videos need their cameras' calibration (--calibration Calib.toml, one "
                          "camera per video in the file's order); --camera auto is for one video", field="--calibration")
     infos = [video_info(v, fps=args.fps) for v in args.videos]  # every video readable before any work
+    if args.crop is not None and len(args.videos) > 1:
+        raise InputError("--crop is one video's (its frame's pixels): give it with one video", field="--crop")
+    for info in infos:
+        check_crop(args.crop, info)
     out = check_writable(args.out, folder=True)
     files = _outputs(out, args.videos)
     stages: dict[str, float] = {}
@@ -229,13 +240,13 @@ def _run(args, infos, files, stages, t_start, plots, auto, tracked) -> dict:
                 kept[i] = KeptFrames(info, size["max_height"], budget=KeptFrames.BUDGET // len(args.videos),
                                      max_width=size["max_width"])
             tr = track_video(video, fps=args.fps, max_frames=args.max_frames, model_complexity=args.model_complexity,
-                             progress=not args.quiet, on_frame=kept[i], info=info)
+                             progress=not args.quiet, on_frame=kept[i], info=info, crop=args.crop)
         tr.lifted.camera = i
         tr.save(files["tracks"][i])
         tracks.append(tr)
         stages[f"track {Path(video).name}"] = time.perf_counter() - t0
         if not tr.observed.any():
-            raise InputError("MediaPipe found no person in any frame", file=video)
+            raise InputError(NOBODY, file=video)
     if plots is not None:
         plots.start()
 

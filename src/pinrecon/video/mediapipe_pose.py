@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..errors import InputError
 from ..layouts import MEDIAPIPE_33
 from ..lifted import Lifted
 from ..tracks import Tracks
@@ -198,6 +199,7 @@ def track_video(
     progress: bool = False,
     on_frame: Callable[[int, np.ndarray], None] | None = None,
     info: VideoInfo | None = None,
+    crop: tuple[int, int, int, int] | None = None,
 ) -> Tracks:
     """Run MediaPipe Pose over the video at ``path``: :class:`~pinrecon.Tracks` of its 33
     landmarks in pixels (layout ``"mediapipe33"``, confidence = visibility, ``fps`` the
@@ -208,7 +210,9 @@ def track_video(
     ``on_frame(t, frame_bgr)`` sees each decoded frame, in order, in the thread that decodes
     them (to reuse the decode: it must not hold the GIL long). ``info``: the video's
     :func:`~pinrecon.video.video_info` (with the same ``fps``) when the caller has it, which
-    saves opening the file once more. A file that is
+    saves opening the file once more. ``crop`` ``(x, y, w, h)``: the detector sees that part of
+    each frame only (MediaPipe misses a person who fills little of its image); the landmarks are
+    in the whole frame's pixels all the same. A file that is
     not a video raises :class:`~pinrecon.errors.InputError`; a missing extra
     :class:`~pinrecon.video.MissingVideoExtraError`.
     """
@@ -218,10 +222,15 @@ def track_video(
     name = os.path.basename(str(path))
     cv2 = require_cv2()
 
+    x0, y0, cw, ch = (0, 0, info.width, info.height) if crop is None else (int(v) for v in crop)
+    if x0 < 0 or y0 < 0 or cw < 1 or ch < 1 or x0 + cw > info.width or y0 + ch > info.height:
+        raise InputError(f"the crop {x0} {y0} {cw} {ch} (x, y, w, h) is not inside the {info.width} x "
+                         f"{info.height} frame", file=path, field="crop")
+
     def prepare(t, frame):  # in the decoding thread, beside the detector (both let go of the GIL)
         if on_frame is not None:
             on_frame(t, frame)
-        return cv2.cvtColor(frame, cv2.COLOR_BGR2RGB)
+        return cv2.cvtColor(frame[y0:y0 + ch, x0:x0 + cw], cv2.COLOR_BGR2RGB)
 
     with _quiet_native_stderr() as stderr, MediaPipePose(model_complexity) as pose, \
             FrameProgress(total, f"track {name}", enabled=progress, file=stderr) as bar:
@@ -232,7 +241,8 @@ def track_video(
             world.append(c)
             bar.update()
     names = list(MEDIAPIPE_33)
+    uv = np.array(uv).reshape(-1, len(names), 2) + [x0, y0]  # the whole frame's pixels
     lifted = Lifted(np.array(world).reshape(-1, len(names), 3), names, np.array(vis).reshape(-1, len(names)),
                     frame="unknown", source="mediapipe")
-    return Tracks(np.array(uv).reshape(-1, len(names), 2), names, info.fps, lifted.confidence.copy(), str(path),
+    return Tracks(uv, names, info.fps, lifted.confidence.copy(), str(path),
                   "mediapipe33", lifted)
