@@ -14,7 +14,7 @@ from pathlib import Path
 
 from ..errors import InputError
 
-__all__ = ["add_video_options", "check_crop", "check_video_options", "check_writable", "cmd_track", "register"]
+__all__ = ["add_video_options", "check_video_options", "check_writable", "cmd_track", "register"]
 
 
 def check_writable(path: str | os.PathLike, *, folder: bool = False) -> Path:
@@ -60,27 +60,16 @@ def add_video_options(p, *, fps: bool = True) -> None:
 
 
 def check_video_options(args) -> None:
-    """``--max-frames``, ``--fps`` and ``--crop`` in range, else one InputError (the crop
-    within each video's frame: :func:`check_crop`)."""
+    """``--max-frames`` and ``--fps`` in range, else one InputError (``--crop`` is checked
+    against each video's frame: :func:`pinrecon.video.crop_box`)."""
     if args.max_frames is not None and args.max_frames < 1:
         raise InputError(f"must be at least 1, got {args.max_frames}", field="--max-frames")
     if args.fps is not None and not 0 < args.fps < 1e4:
         raise InputError(f"must be a frame rate in (0, 10000), got {args.fps}", field="--fps")
-    crop = getattr(args, "crop", None)
-    if crop is not None and (min(crop[:2]) < 0 or min(crop[2:]) < 16):
-        raise InputError(f"needs X, Y >= 0 and W, H >= 16 pixels, got {' '.join(map(str, crop))}", field="--crop")
-
-
-def check_crop(crop, info) -> None:
-    """``--crop`` (X, Y, W, H) within the frame of the video ``info`` describes, else one
-    InputError naming the video."""
-    if crop is not None and (crop[0] + crop[2] > info.width or crop[1] + crop[3] > info.height):
-        raise InputError(f"--crop {' '.join(map(str, crop))} reaches outside the {info.width} x {info.height} frame",
-                         file=info.path, field="--crop")
 
 
 def cmd_track(args) -> int:
-    from ..video import require_mediapipe, track_video, video_info
+    from ..video import crop_box, require_mediapipe, track_video, video_info
 
     check_video_options(args)
     require_mediapipe()
@@ -88,7 +77,7 @@ def cmd_track(args) -> int:
     if Path(args.out).suffix.lower() not in (".json", ".npz"):
         raise InputError("the tracks file is .json or .npz", file=args.out, field="--out")
     info = video_info(args.video, fps=args.fps)
-    check_crop(args.crop, info)
+    crop_box(args.crop, info, field="--crop")
     t0 = time.perf_counter()
     tracks = track_video(args.video, fps=args.fps, max_frames=args.max_frames,
                          model_complexity=args.model_complexity, progress=not args.quiet, info=info,

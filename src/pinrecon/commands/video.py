@@ -22,14 +22,7 @@ import warnings
 from pathlib import Path
 
 from ..errors import InputError
-from .track import (
-    FPS_HELP,
-    NOBODY,
-    add_video_options,
-    check_crop,
-    check_video_options,
-    check_writable,
-)
+from .track import FPS_HELP, NOBODY, add_video_options, check_video_options, check_writable
 
 __all__ = ["cmd_video", "register", "run_video"]
 
@@ -184,7 +177,7 @@ def run_video(args, tracked=None) -> dict:
     {name: seconds}}``. ``tracked``:
     one :class:`~pinrecon.Tracks` per video from an earlier :func:`pinrecon.video.track_video`
     (a benchmark's cache), used instead of running the detector again."""
-    from ..video import require_mediapipe, video_info
+    from ..video import crop_box, require_mediapipe, video_info
 
     check_video_options(args)
     if args.overlay_height is not None and args.overlay_height < 16:
@@ -205,7 +198,7 @@ def run_video(args, tracked=None) -> dict:
     if args.crop is not None and len(args.videos) > 1:
         raise InputError("--crop is one video's (its frame's pixels): give it with one video", field="--crop")
     for info in infos:
-        check_crop(args.crop, info)
+        crop_box(args.crop, info, field="--crop")
     out = check_writable(args.out, folder=True)
     files = _outputs(out, args.videos)
     stages: dict[str, float] = {}

@@ -15,8 +15,10 @@ call these. Without the extra, the functions raise :class:`MissingVideoExtraErro
 
 from .frames import (
     EXTRA_HINT,
+    MIN_CROP,
     MissingVideoExtraError,
     VideoInfo,
+    crop_box,
     iter_frames,
     require_cv2,
     video_info,
@@ -27,10 +29,12 @@ from .progress import FrameProgress
 __all__ = [
     "EXTRA_HINT",
     "MEDIAPIPE_VERSION",
+    "MIN_CROP",
     "FrameProgress",
     "MediaPipePose",
     "MissingVideoExtraError",
     "VideoInfo",
+    "crop_box",
     "iter_frames",
     "require_cv2",
     "require_mediapipe",

@@ -19,7 +19,8 @@ import numpy as np
 
 from ..errors import InputError, PinreconError
 
-__all__ = ["EXTRA_HINT", "MissingVideoExtraError", "VideoInfo", "iter_frames", "require_cv2", "video_info"]
+__all__ = ["EXTRA_HINT", "MIN_CROP", "MissingVideoExtraError", "VideoInfo", "crop_box", "iter_frames", "require_cv2",
+           "video_info"]
 
 EXTRA_HINT = 'from a pinrecon checkout, pip install ".[video]"'
 
@@ -85,6 +86,26 @@ def video_info(path: str | os.PathLike, *, fps: float | None = None) -> VideoInf
         raise InputError(f"the video stores no usable frame rate ({rate:g}): give it (--fps)", file=path, field="fps")
     h, w = frame.shape[:2]
     return VideoInfo(str(path), rate, int(w), int(h), count)
+
+
+#: a crop's least width and height in pixels
+MIN_CROP = 16
+
+
+def crop_box(crop, info: VideoInfo, *, field: str = "crop") -> tuple[int, int, int, int]:
+    """``(x, y, w, h)`` of ``crop`` (the whole frame when None) inside the frame of the video
+    ``info`` describes, at least :data:`MIN_CROP` pixels wide and high; else one
+    :class:`~pinrecon.errors.InputError` naming the video and ``field``."""
+    if crop is None:
+        return 0, 0, info.width, info.height
+    x, y, w, h = (int(v) for v in crop)
+    if min(x, y) < 0 or min(w, h) < MIN_CROP:
+        raise InputError(f"needs X, Y >= 0 and W, H >= {MIN_CROP} pixels, got {x} {y} {w} {h}", file=info.path,
+                         field=field)
+    if x + w > info.width or y + h > info.height:
+        raise InputError(f"{x} {y} {w} {h} reaches outside the {info.width} x {info.height} frame", file=info.path,
+                         field=field)
+    return x, y, w, h
 
 
 def iter_frames(path: str | os.PathLike, max_frames: int | None = None, *, ahead: int = 0,

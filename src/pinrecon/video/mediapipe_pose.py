@@ -27,10 +27,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..errors import InputError
 from ..layouts import MEDIAPIPE_33
 from ..lifted import Lifted
 from ..tracks import Tracks
+from . import frames
 from .frames import EXTRA_HINT, MissingVideoExtraError, iter_frames, require_cv2, video_info
 from .progress import FrameProgress
 
@@ -211,7 +211,7 @@ def track_video(
     them (to reuse the decode: it must not hold the GIL long). ``info``: the video's
     :func:`~pinrecon.video.video_info` (with the same ``fps``) when the caller has it, which
     saves opening the file once more. ``crop`` ``(x, y, w, h)``: the detector sees that part of
-    each frame only (MediaPipe misses a person who fills little of its image); the landmarks are
+    each frame only (:func:`~pinrecon.video.crop_box`) (MediaPipe misses a person who fills little of its image); the landmarks are
     in the whole frame's pixels all the same. A file that is
     not a video raises :class:`~pinrecon.errors.InputError`; a missing extra
     :class:`~pinrecon.video.MissingVideoExtraError`.
@@ -222,10 +222,7 @@ def track_video(
     name = os.path.basename(str(path))
     cv2 = require_cv2()
 
-    x0, y0, cw, ch = (0, 0, info.width, info.height) if crop is None else (int(v) for v in crop)
-    if x0 < 0 or y0 < 0 or cw < 1 or ch < 1 or x0 + cw > info.width or y0 + ch > info.height:
-        raise InputError(f"the crop {x0} {y0} {cw} {ch} (x, y, w, h) is not inside the {info.width} x "
-                         f"{info.height} frame", file=path, field="crop")
+    x0, y0, cw, ch = frames.crop_box(crop, info)
 
     def prepare(t, frame):  # in the decoding thread, beside the detector (both let go of the GIL)
         if on_frame is not None:
