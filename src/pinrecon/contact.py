@@ -41,7 +41,7 @@ __all__ = [
     "FOOT_EXTRAS", "ContactSettings", "Floor", "FootContact", "body_up", "contact_heights", "contact_rows",
     "contacts_from_spec", "detect_contacts", "detection_settings", "estimate_floor", "foot_keypoints",
     "foot_metrics", "foot_speeds",
-    "ground_contacts", "hold_rows", "leg_points", "sole_offset", "solve_on_the_floor",
+    "ground_contacts", "hold_rows", "leg_points", "sole_offset", "solve_on_the_floor", "true_runs",
 ]
 
 #: a keypoint whose name contains one of these (case-insensitive) is a foot point
@@ -333,8 +333,8 @@ def _speeds(P, fps, smooth_s, unseen=None):
     return np.linalg.norm(V, axis=-1)
 
 
-def _runs(mask):
-    """(start, stop) of the True runs of a 1D bool array."""
+def true_runs(mask) -> list[tuple[int, int]]:
+    """(start, stop) of the True runs of a 1D bool array (frames: the first, the one after the last)."""
     d = np.diff(np.r_[0, mask.astype(int), 0])
     return list(zip(np.where(d == 1)[0], np.where(d == -1)[0]))
 
@@ -382,11 +382,11 @@ def detect_contacts(p_feet, floor: Floor, fps: float, settings: ContactSettings 
         for t in range(T - 2, -1, -1):
             if out[t + 1, f] and stay[t, f]:
                 out[t, f] = True
-        for a, b in _runs(~out[:, f]):
+        for a, b in true_runs(~out[:, f]):
             if 0 < a and b < T and b - a <= gap:
                 out[a:b, f] = True
         trim = int(round(s.trim_s * fps))
-        for a, b in _runs(out[:, f]):
+        for a, b in true_runs(out[:, f]):
             a2, b2 = a + trim * (a > 0), b - trim * (b < T)
             out[a:b, f] = False
             if b2 - a2 >= shortest:

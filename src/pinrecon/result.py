@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .cameras import camera_from_dict
-from .contact import FOOT_EXTRAS, FootContact, foot_metrics
+from .contact import FOOT_EXTRAS, FootContact, foot_metrics, true_runs
 
 #: extras of the hypotheses start, the fault stage, the pose prior's check and :mod:`pinrecon.stability`,
 #: kept by :func:`load_result`
@@ -644,8 +644,7 @@ def unobserved_lines(observed, fps: float, limit: int = 6) -> list[str]:
     seen = np.asarray(observed, bool)
     if not len(seen) or not seen.any():
         return []
-    edges = np.flatnonzero(np.diff(np.r_[0, (~seen).astype(int), 0]))
-    spans = [(a, b) for a, b in zip(edges[::2], edges[1::2]) if (b - a) / fps >= UNOBSERVED_S]
+    spans = [(a, b) for a, b in true_runs(~seen) if (b - a) / fps >= UNOBSERVED_S]
     if not spans:
         return []
     n = sum(b - a for a, b in spans)

@@ -51,6 +51,7 @@ import numpy as np
 from scipy.ndimage import uniform_filter1d
 from scipy.spatial.transform import Rotation
 
+from ..contact import true_runs
 from ..processes import Beside, forkable
 from ..solver import SolverOptions, globals_of, solve
 
@@ -120,10 +121,9 @@ def fast_turn_windows(angle, fps: float, rate_dps: float = 300.0, margin_s: floa
     rate = np.degrees(np.abs(np.gradient(angle))) * float(fps)
     rate = uniform_filter1d(rate, max(1, round(smooth_s * fps)))
     fast = rate > rate_dps
-    edges = np.flatnonzero(np.diff(np.r_[0, fast.astype(int), 0]))
     m = round(margin_s * fps)
     out: list[tuple[int, int]] = []
-    for a, b in zip(edges[::2], edges[1::2]):
+    for a, b in true_runs(fast):
         a, b = max(0, int(a) - m), min(T, int(b) + m)
         if out and a <= out[-1][1]:
             out[-1] = (out[-1][0], b)
