@@ -398,12 +398,12 @@ def test_overlay_panels_fit_a_square_by_default_or_take_the_height_given():
     height alone; never enlarged; even sizes."""
     from types import SimpleNamespace
 
-    from pinrecon.commands.video import _overlay_size
+    from pinrecon.commands.video import _overlay_bounds
     from pinrecon.video import VideoInfo
     from pinrecon.viz.overlay import KeptFrames
 
     def size(w, h, height=None):
-        return KeptFrames(VideoInfo("v.mp4", 30.0, w, h, 10), **_overlay_size(SimpleNamespace(overlay_height=height))).size
+        return KeptFrames(VideoInfo("v.mp4", 30.0, w, h, 10), **_overlay_bounds(SimpleNamespace(overlay_height=height))).size
 
     assert size(1080, 1920) == (540, 960)
     assert size(1920, 1080) == (960, 540)

@@ -150,7 +150,7 @@ class _Plots:
         return plot_result(res, self.folder, tracks=tracks if len(tracks) > 1 else tracks[0], animation=False)
 
 
-def _overlay_size(args) -> dict:
+def _overlay_bounds(args) -> dict:
     """The overlay panels' bounds: ``--overlay-height`` rows, or by default each panel within
     :data:`pinrecon.viz.overlay.PANEL_SIDE` pixels square."""
     from ..viz.overlay import PANEL_SIDE
@@ -166,7 +166,7 @@ def _write_overlays(res, args, paths, tracks, kept) -> tuple[list[Path], float]:
     from ..viz.overlay import write_overlay
 
     t0 = time.perf_counter()
-    out = [write_overlay(res, video, paths[i], camera_index=i, tracks=tracks[i], **_overlay_size(args),
+    out = [write_overlay(res, video, paths[i], camera_index=i, tracks=tracks[i], **_overlay_bounds(args),
                          progress=not args.quiet, frames=kept[i]) for i, video in enumerate(args.videos)]
     return out, time.perf_counter() - t0
 
@@ -229,9 +229,7 @@ def _run(args, infos, files, stages, t_start, plots, auto, tracked) -> dict:
             if not args.no_overlay:  # the overlay's frames kept as the detector decodes them (short videos)
                 from ..viz.overlay import KeptFrames
 
-                size = _overlay_size(args)
-                kept[i] = KeptFrames(info, size["max_height"], budget=KeptFrames.BUDGET // len(args.videos),
-                                     max_width=size["max_width"])
+                kept[i] = KeptFrames(info, budget=KeptFrames.BUDGET // len(args.videos), **_overlay_bounds(args))
             tr = track_video(video, fps=args.fps, max_frames=args.max_frames, model_complexity=args.model_complexity,
                              progress=not args.quiet, on_frame=kept[i], info=info, crop=args.crop)
         tr.lifted.camera = i
