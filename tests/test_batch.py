@@ -257,8 +257,8 @@ def test_a_video_clip_goes_through_the_video_tracker(inputs, reference, tmp_path
 
     seen = []
 
-    def track_video(path, *, fps=None):
-        seen.append(path)
+    def track_video(path, *, fps=None, threads=None):
+        seen.append((path, threads))
         return load_tracks(inputs / "walk_a.json")
 
     fake = types.SimpleNamespace(track_video=track_video,
@@ -268,7 +268,7 @@ def test_a_video_clip_goes_through_the_video_tracker(inputs, reference, tmp_path
     out = tmp_path / "out"
     assert main(["batch", str(tmp_path / "walk_a.mp4"), "--out", str(out), "--camera", str(inputs / "camera.json"),
                  "--jobs", "1", "--quiet", "--no-pictures", *SOLVE]) == 0
-    assert seen == [str(tmp_path / "walk_a.mp4")]
+    assert seen == [(str(tmp_path / "walk_a.mp4"), 1)]  # one detector thread a clip: the workers share the cores
     assert (out / "walk_a" / "tracks.json").is_file()
     _assert_equal_to(out, {"walk_a": reference["walk_a"]})
 

@@ -46,7 +46,8 @@ from .io.atomic import atomic_write_text
 __all__ = ["Clip", "BatchReport", "discover", "read_manifest", "run_clip", "run_batch", "clip_is_done",
            "write_summary", "SUMMARY_COLUMNS", "VIDEO_SUFFIXES", "THREADS"]
 
-#: BLAS/OpenMP threads of every clip's solve (the same everywhere, so the results are)
+#: BLAS/OpenMP threads of every clip's solve (the same everywhere, so the results are), and its
+#: video's detector's
 THREADS = 1
 VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv", ".webm", ".m4v", ".mpg", ".mpeg")
 TRACKS_SUFFIXES = (".json", ".npz")
@@ -303,12 +304,13 @@ def _video_tracks(clip: Clip, a, folder: Path) -> None:
     """Track a video clip as ``pinrecon track`` does (:func:`pinrecon.video.track_video`, the
     ``video`` extra) into ``folder/tracks.json`` and point ``a`` at it, as ``pinrecon video``
     does: the tracks' own frame rate, ``--camera auto`` unless a camera was given, the video's
-    frame size for it."""
+    frame size for it. The detector runs on :data:`THREADS` threads, as the solve: the batch's
+    workers share the cores clip by clip."""
     from .video import track_video as track
     from .video import video_info as info_of
 
     info = info_of(clip.path, fps=a.fps)
-    tracks = track(clip.path, fps=a.fps)
+    tracks = track(clip.path, fps=a.fps, threads=THREADS)
     if not tracks.observed.any():
         raise InputError("the tracker found no person in any frame", file=clip.path)
     out = folder / "tracks.json"

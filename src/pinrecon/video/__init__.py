@@ -23,11 +23,19 @@ from .frames import (
     require_cv2,
     video_info,
 )
-from .mediapipe_pose import MEDIAPIPE_VERSION, MediaPipePose, require_mediapipe, track_video
+from .mediapipe_pose import (
+    MAX_DETECTOR_THREADS,
+    MEDIAPIPE_VERSION,
+    MediaPipePose,
+    detector_threads,
+    require_mediapipe,
+    track_video,
+)
 from .progress import FrameProgress
 
 __all__ = [
     "EXTRA_HINT",
+    "MAX_DETECTOR_THREADS",
     "MEDIAPIPE_VERSION",
     "MIN_CROP",
     "FrameProgress",
@@ -35,6 +43,7 @@ __all__ = [
     "MissingVideoExtraError",
     "VideoInfo",
     "crop_box",
+    "detector_threads",
     "iter_frames",
     "require_cv2",
     "require_mediapipe",

@@ -29,6 +29,7 @@ import numpy as np
 
 from ..layouts import MEDIAPIPE_33
 from ..lifted import Lifted
+from ..processes import usable_cpus
 from ..tracks import Tracks
 from . import frames
 from .frames import EXTRA_HINT, MissingVideoExtraError, iter_frames, require_cv2, video_info
@@ -37,7 +38,8 @@ from .progress import FrameProgress
 if TYPE_CHECKING:
     from .frames import VideoInfo
 
-__all__ = ["MEDIAPIPE_VERSION", "MediaPipePose", "require_mediapipe", "track_video"]
+__all__ = ["MAX_DETECTOR_THREADS", "MEDIAPIPE_VERSION", "MediaPipePose", "detector_threads", "require_mediapipe",
+           "track_video"]
 
 #: the MediaPipe release whose legacy Pose solution this reads (its model is in the wheel)
 MEDIAPIPE_VERSION = "0.10.14"
@@ -112,6 +114,37 @@ def _import_mediapipe():
     return mp
 
 
+#: at most this many threads for the detector's networks (measured on 1080 x 1920 frames: one
+#: thread 22 ms a frame, two 14.5 ms; bench/README.md, bench_video)
+MAX_DETECTOR_THREADS = 4
+
+
+def detector_threads(share: int = 1) -> int:
+    """The threads MediaPipe's networks run on by default: the CPUs this process may use
+    (:func:`~pinrecon.processes.usable_cpus`), divided among ``share`` detectors running at
+    once, at least 1 and at most :data:`MAX_DETECTOR_THREADS`."""
+    return max(1, min(MAX_DETECTOR_THREADS, usable_cpus() // max(1, int(share))))
+
+
+def _pose_class(mp, threads: int):
+    """MediaPipe's legacy Pose whose inference calculators run XNNPACK on ``threads`` threads
+    (the legacy solution has no such argument; its graph's options are set as it builds them)."""
+    from mediapipe.calculators.tensor import inference_calculator_pb2
+
+    ext = inference_calculator_pb2.InferenceCalculatorOptions.ext
+
+    class Pose(mp.solutions.pose.Pose):
+        def _modify_calculator_options(self, config, params):
+            super()._modify_calculator_options(config, params)
+            for node in config.node:
+                if node.calculator.startswith("InferenceCalculator") and node.options.HasExtension(ext):
+                    delegate = node.options.Extensions[ext].delegate
+                    if delegate.HasField("xnnpack"):
+                        delegate.xnnpack.num_threads = threads
+
+    return Pose
+
+
 @contextlib.contextmanager
 def _quiet_native_stderr():
     """MediaPipe's native code prints notes (TensorFlow Lite's delegate, glog lines that
@@ -146,15 +179,20 @@ class MediaPipePose:
     ``(uv_px (33, 2), visibility (33,), p_world_m (33, 3))``, NaN and 0 where nobody is found.
 
     ``model_complexity``: 1 (full, the default: the model in MediaPipe's wheel), 0 (lite) or
-    2 (heavy): MediaPipe downloads those on first use. Close it (or use ``with``) to free the graph."""
+    2 (heavy): MediaPipe downloads those on first use. ``threads``: the CPU threads each of its
+    two networks runs on (TensorFlow Lite's XNNPACK; the same landmarks with any number); None,
+    :func:`detector_threads`. Close it (or use ``with``) to free the graph."""
 
-    def __init__(self, model_complexity: int = 1, *, static_image_mode: bool = False):
+    def __init__(self, model_complexity: int = 1, *, static_image_mode: bool = False, threads: int | None = None):
         mp = _import_mediapipe()
         self.cv2 = require_cv2()
+        self.threads = detector_threads() if threads is None else int(threads)
+        if self.threads < 1:
+            raise ValueError(f"threads must be at least 1, got {threads}")
         with warnings.catch_warnings(), _quiet_native_stderr():
             warnings.simplefilter("ignore")
-            self._pose = mp.solutions.pose.Pose(static_image_mode=static_image_mode,
-                                                model_complexity=model_complexity)
+            self._pose = _pose_class(mp, self.threads)(static_image_mode=static_image_mode,
+                                                       model_complexity=model_complexity)
         self._started = False
 
     def detect(self, frame_bgr: np.ndarray):
@@ -200,6 +238,7 @@ def track_video(
     on_frame: Callable[[int, np.ndarray], None] | None = None,
     info: VideoInfo | None = None,
     crop: tuple[int, int, int, int] | None = None,
+    threads: int | None = None,
 ) -> Tracks:
     """Run MediaPipe Pose over the video at ``path``: :class:`~pinrecon.Tracks` of its 33
     landmarks in pixels (layout ``"mediapipe33"``, confidence = visibility, ``fps`` the
@@ -212,7 +251,8 @@ def track_video(
     :func:`~pinrecon.video.video_info` (with the same ``fps``) when the caller has it, which
     saves opening the file once more. ``crop`` ``(x, y, w, h)``: the detector sees that part of
     each frame only (:func:`~pinrecon.video.crop_box`) (MediaPipe misses a person who fills little of its image); the landmarks are
-    in the whole frame's pixels all the same. A file that is
+    in the whole frame's pixels all the same. ``threads``: the detector's (:class:`MediaPipePose`;
+    None, every CPU this process may use, up to :data:`MAX_DETECTOR_THREADS`). A file that is
     not a video raises :class:`~pinrecon.errors.InputError`; a missing extra
     :class:`~pinrecon.video.MissingVideoExtraError`.
     """
@@ -229,7 +269,7 @@ def track_video(
             on_frame(t, frame)
         return cv2.cvtColor(frame[y0:y0 + ch, x0:x0 + cw], cv2.COLOR_BGR2RGB)
 
-    with _quiet_native_stderr() as stderr, MediaPipePose(model_complexity) as pose, \
+    with _quiet_native_stderr() as stderr, MediaPipePose(model_complexity, threads=threads) as pose, \
             FrameProgress(total, f"track {name}", enabled=progress, file=stderr) as bar:
         for rgb in iter_frames(path, max_frames, ahead=4, prepare=prepare):
             a, b, c = pose.detect_rgb(rgb)
