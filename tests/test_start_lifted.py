@@ -68,3 +68,30 @@ def test_without_cues_the_auto_start_is_the_hypotheses_start():
     problem = build_problem(fig, tracks, cam, seed="rest").problem
     assert not has_lifted(problem)
     assert np.array_equal(lifted_start(problem), rest_start(problem))
+
+
+def test_a_rigid_body_moves_the_figures_kinematics_by_its_root():
+    """The root-only fits (the rest start's, the lifted start's) form the body's kinematics once
+    and move them by each frame's root: the same keypoints and WORLD Jacobian as Pinocchio's
+    (frame by frame below 64 frames), for any root and body; another body in some frame, or a
+    fixed root, keeps the figure's own kinematics."""
+    from pinrecon.starts.rest import RigidBody
+
+    fig = pr.Figure.human()
+    rng = np.random.default_rng(3)
+    Q = np.tile(fig.random_configuration(rng), (T, 1))
+    Q[:, :7] = [fig.random_configuration(rng)[:7] for _ in range(T)]
+    Q[:, :3] += rng.normal(0.0, 2.0, (T, 3))
+    body = RigidBody.of(fig, Q)
+    assert isinstance(body, RigidBody) and body.nv == fig.nv and body.keypoint_names == fig.keypoint_names
+    P, J = fig.world_kinematics(Q, True)
+    P1, J1 = body.world_kinematics(Q, True)
+    np.testing.assert_allclose(P1, P, atol=1e-12)
+    np.testing.assert_allclose(J1, J, atol=1e-12)
+    assert np.abs(J[:, :, 6:]).max() > 0.5  # the joints' columns, moved with the root, not only the root's
+    P2, none = body.world_kinematics(Q, False)
+    assert none is None and np.array_equal(P2, P1)
+    Q[5, 12] += 0.2
+    assert RigidBody.of(fig, Q) is fig
+    fixed = pr.Figure.human(root="fixed")
+    assert RigidBody.of(fixed, np.tile(fixed.neutral(), (T, 1))) is fixed

@@ -37,6 +37,7 @@ __all__ = [
     "loop_joint_kinematics",
     "point_jacobian_factors",
     "point_kinematics",
+    "quaternion_matrices",
     "rows_of",
     "support_mask",
 ]
@@ -97,8 +98,9 @@ def _cross_into(out, a, b):
     out[2] -= a[1] * b[0]
 
 
-def _quat_matrix(x, y, z, w):
-    """Rotation matrices (3, 3, T) of unit quaternions given as (T,) components."""
+def quaternion_matrices(x, y, z, w):
+    """Rotation matrices (3, 3, T) of unit quaternions given as (T,) components (frames last,
+    as :func:`batch_joint_kinematics` works)."""
     return np.array([
         [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
         [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
@@ -140,7 +142,7 @@ def batch_joint_kinematics(model, kinds, Q, joints, jacobian: bool):
         kind, axis = kinds[j]
         iq, iv = model.idx_qs[j], model.idx_vs[j]
         if kind == "free":
-            Rq = _quat_matrix(QT[iq + 3], QT[iq + 4], QT[iq + 5], QT[iq + 6])
+            Rq = quaternion_matrices(QT[iq + 3], QT[iq + 4], QT[iq + 5], QT[iq + 6])
             R[j] = np.einsum("abt,bct->act", R_par, Rq)
             p[j] = p_par + np.einsum("abt,bt->at", R_par, QT[iq : iq + 3])
             if jacobian:

@@ -24,7 +24,7 @@ from ..problem import ReconstructionProblem, posture_row, rest_pose
 from ..rows import JointLimits, Points3D, Posture
 from ..rows.lifted import LiftedPose
 from ..solver import SolverOptions, solve
-from .rest import place_on_tracks, rest_start
+from .rest import RigidBody, place_on_tracks, rest_start
 from .triangulation import normalized_coords
 
 __all__ = ["camera_rotation_from_tracks", "has_lifted", "lifted_start"]
@@ -109,7 +109,7 @@ def lifted_start(problem: ReconstructionProblem) -> np.ndarray:
     kps, targets = _targets(row, _rotation(problem, row), fig.keypoints(Q_rest), T, trunk.all(axis=1))
     if not np.isfinite(targets).any():
         return Q_rest
-    ik = ReconstructionProblem(fig, T, [
+    ik = ReconstructionProblem(RigidBody.of(fig, Q_rest), T, [  # the root alone moves
         Points3D(np.arange(T), kps, targets, SIGMA_TARGET_M, name="lifted_targets"),
         JointLimits(fig, T, w.sigma_limits),
         posture_row(fig, T, w, problem.active) or Posture(fig, T, rest_pose(fig), 3.0, problem.active),

@@ -19,12 +19,13 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from ..kinematics import quaternion_matrices
 from ..problem import ReconstructionProblem, rest_pose
 from ..rows import Measurement2D
 from ..solver import SolverOptions, solve
 from .triangulation import fit_triangulated, normalized_coords
 
-__all__ = ["rest_start", "place_on_tracks", "fit_root"]
+__all__ = ["RigidBody", "fit_root", "place_on_tracks", "rest_start"]
 
 
 def _as_list(x) -> list:
@@ -128,14 +129,62 @@ def _place_multiview(figure, Q, cams, meas_l, steps: int = 3) -> np.ndarray:
     return Q
 
 
+class RigidBody:
+    """``figure`` whose joints stay at one configuration's in every frame while its root moves
+    (a root-only fit): :meth:`world_kinematics` forms the body's keypoints and WORLD Jacobian
+    once, at the identity root, and moves them by each frame's root (the Jacobian by the root's
+    adjoint), instead of running the joints' recursion each time. The same numbers as
+    ``figure.world_kinematics`` to rounding; everything else is ``figure``'s.
+    :meth:`of` makes one where that holds."""
+
+    def __init__(self, figure, q):
+        self.figure = figure
+        q = np.array(q, float)
+        q[:7] = (0, 0, 0, 0, 0, 0, 1)
+        P, Jw = figure.world_kinematics(q[None], True)
+        self._P, self._Jw = P[0], Jw[0]
+
+    @classmethod
+    def of(cls, figure, Q):
+        """A :class:`RigidBody` of ``figure`` for trajectory ``Q`` when its root is a free flyer
+        placed at the world's origin and every frame holds the joints below it alike; else
+        ``figure`` itself."""
+        m = getattr(figure, "model", None)
+        Q = np.asarray(Q, float)
+        if not getattr(figure, "floating", False) or m is None or m.njoints < 2 or m.parents[1] != 0 \
+                or not np.array_equal(m.jointPlacements[1].homogeneous, np.eye(4)) or len(Q) < 2 \
+                or not np.array_equal(Q[1:, 7:], np.broadcast_to(Q[0, 7:], Q[1:, 7:].shape)):
+            return figure
+        return cls(figure, Q[0])
+
+    def __getattr__(self, name):
+        return getattr(self.figure, name)
+
+    def world_kinematics(self, Q: np.ndarray, jacobian: bool = True):
+        """The figure's :meth:`~pinrecon.figure.Figure.world_kinematics` for ``Q`` (its joints
+        the body's): keypoints (T, K, 3) and the WORLD Jacobian (T, 6, nv) or ``None``."""
+        Q = np.asarray(Q, float)
+        R = quaternion_matrices(*Q[:, 3:7].T).transpose(2, 0, 1)  # (T, 3, 3), as the recursion forms it
+        p = Q[:, :3]
+        P = np.einsum("tab,kb->tka", R, self._P) + p[:, None]
+        if not jacobian:
+            return P, None
+        ang = np.matmul(R, self._Jw[3:])  # (T, 3, nv): a twist at the origin acted by (R, p)
+        Jw = np.empty((len(Q), 6, self._Jw.shape[1]))
+        Jw[:, 3:] = ang
+        Jw[:, :3] = np.matmul(R, self._Jw[:3]) + np.cross(p[:, :, None], ang, axis=1)
+        return P, Jw
+
+
 def fit_root(figure, Q, meas, smoothing, options: SolverOptions | None = None) -> np.ndarray:
     """``Q`` with only the root's tangent entries fitted to the measurements (one
     :class:`Measurement2D` or a sequence of them, one per camera) and the smoothing prior
-    (a short solve)."""
+    (a short solve). Where the joints are alike in every frame, their kinematics are formed
+    once (:class:`RigidBody`)."""
     active = np.zeros(figure.nv, bool)
     active[figure.root_v] = True
     rows = [m for m in _as_list(meas) if m is not None]
-    problem = ReconstructionProblem(figure, Q.shape[0], rows + [smoothing])
+    problem = ReconstructionProblem(RigidBody.of(figure, Q), Q.shape[0], rows + [smoothing])
     res = solve(problem, Q, options or SolverOptions(max_iterations=30, ftol=1e-5), active=active)
     return res.x
 
