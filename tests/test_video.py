@@ -338,6 +338,32 @@ def test_overlay_from_the_detectors_frames_is_the_overlay_decoded_again(video_ru
     assert np.array_equal(from_kept, decoded) and np.array_equal(again, decoded)
 
 
+def test_kept_frames_fill_a_store_mapped_at_once_and_go_on_past_it():
+    """The kept frames' memory is mapped in before the first frame (:func:`frame_store`): they are
+    OpenCV's scaled frames all the same, frame for frame; a video with more frames than its file
+    says goes on in arrays of their own; one the budget cannot hold keeps none from the start."""
+    from pinrecon.video import VideoInfo
+    from pinrecon.viz.overlay import KeptFrames, frame_store
+
+    frames = np.random.default_rng(0).integers(0, 256, (6, 64, 36, 3), dtype=np.uint8)
+    info = VideoInfo("v.mp4", 30.0, 36, 64, 4)  # the file says 4 frames; 6 come
+    kept, whole = KeptFrames(info, 32, max_width=None), KeptFrames(info, None, max_width=None)
+    for t, f in enumerate(frames):
+        kept(t, f)
+        whole(t, f)
+    frames[:] = 0  # the caller's buffers reused: what was kept stays
+    again = np.random.default_rng(0).integers(0, 256, (6, 64, 36, 3), dtype=np.uint8)
+    expected = [cv2.resize(f, (18, 32), interpolation=cv2.INTER_AREA) for f in again]
+    assert kept.size == (18, 32) and len(kept.frames) == 6
+    assert all(np.array_equal(a, b) for a, b in zip(kept.frames, expected))
+    assert all(np.array_equal(a, b) for a, b in zip(whole.frames, again))
+    assert kept.frames[0].base is not None and kept.frames[5].base is None  # in the store, then its own
+    assert KeptFrames(info, 32, max_width=None, budget=3 * 18 * 32 * 3).frames is None
+    store = frame_store(3, 4, 5)
+    store[2, 3, 4, 1] = 9
+    assert store.shape == (3, 4, 5, 3) and store.dtype == np.uint8 and store.sum() == 9
+
+
 def test_two_calibrated_videos_are_one_solve(cut, tmp_path):
     """Cameras 1 and 2 of the trial with their calibration (pinrecon camera files from the
     Pose2Sim TOML): one solve of 5 frames, in the calibration's world, near the four-camera
