@@ -28,6 +28,7 @@ import numpy as np
 from ..anatomy import joint_title
 from ..errors import InputError, UnknownNameError
 from ._common import (
+    TITLE_Y,
     as_motion,
     view_up,
     check_frames,
@@ -131,7 +132,7 @@ def plot_joint_angles(
                 tv, _ = tseries[tcol]
                 (tl,) = ax.plot(tmotion.times, tv, "--", color="black", lw=1.1, label=labels[1])
                 tl.set_gid("truth")
-        ax.set_title(joint_title(motion.figure, name), fontsize=9)
+        ax.set_title(joint_title(motion.figure, name), fontsize=9, y=TITLE_Y)
         ylabel = "angle (deg)" if unit == "deg" else f"position ({unit})" if unit else "value"
         ax.set_ylabel(ylabel, fontsize=8)
         ax.tick_params(labelsize=7)
@@ -245,7 +246,7 @@ def plot_stick_strip(
             square_limits(ax, 0.5 * (lo[k] + hi[k]), half)
             ax.tick_params(labelsize=6)
             if row == 0:
-                ax.set_title(f"frame {f}, t = {motion.times[f]:.2f} s", fontsize=8)
+                ax.set_title(f"frame {f}, t = {motion.times[f]:.2f} s", fontsize=8, y=TITLE_Y)
             if k == 0:
                 what = "camera view" if row == 0 else "second view"
                 if row == 1 and unit == "m":
@@ -341,7 +342,7 @@ def plot_reprojection(
         ax.add_collection(rl)
         err = np.linalg.norm(obs[ok] - uv[kp_idx[ok]], axis=1)
         err_txt = f", {err.mean():.1f} px" if err.size else ""
-        ax.set_title(f"{who}frame {f} (t = {tracks.times[f]:.2f} s){err_txt}", fontsize=8)
+        ax.set_title(f"{who}frame {f} (t = {tracks.times[f]:.2f} s){err_txt}", fontsize=8, y=TITLE_Y)
         allp = np.concatenate([uv, obs[ok]])
         lo, hi = allp.min(axis=0), allp.max(axis=0)
         square_limits(ax, 0.5 * (lo + hi), 0.55 * float(np.max(hi - lo)) + 1e-9)
@@ -378,7 +379,7 @@ def plot_reprojection_error(result, out: str | os.PathLike | None = None):
     ax.set_ylabel("reprojection error (px)", fontsize=8)
     finite = err[np.isfinite(err)]
     if finite.size:
-        ax.set_title(f"mean {finite.mean():.2f} px, max {finite.max():.2f} px", fontsize=9)
+        ax.set_title(f"mean {finite.mean():.2f} px, max {finite.max():.2f} px", fontsize=9, y=TITLE_Y)
     ax.grid(True, lw=0.3, alpha=0.6)
     if out is not None:
         save_figure(fig, out)
