@@ -93,7 +93,10 @@ class KeptFrames:
             self.frames = None  # more than the budget holds: nothing kept, nothing mapped
         elif n:
             def mapped():
-                self._store = frame_store(n, H, W)
+                try:
+                    self._store = frame_store(n, H, W)
+                except (MemoryError, ValueError):  # the frames then get arrays of their own, as they come
+                    self._store = None
 
             self._mapping = threading.Thread(target=mapped, name="pinrecon-kept-frames", daemon=True)
             self._mapping.start()
