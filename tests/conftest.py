@@ -17,6 +17,7 @@ _BLAS_LIMIT = threadpool_limits(limits=1, user_api="blas")
 # (pinrecon.processes.forkable); the tests of that path ask for the child themselves.
 if os.environ.get("PYTEST_XDIST_WORKER"):
     os.environ.setdefault("PINRECON_BESIDE", "0")
+    os.environ.setdefault("PINRECON_DETECTOR_THREADS", "1")  # the workers already use the cores
 
 # Hypothesis profiles: "ci" (the default: few, fixed examples, so the property tests take
 # well under two minutes and every run tries the same cases) and "long" (a deeper search).

@@ -500,8 +500,16 @@ def test_the_detectors_threads_reach_its_graph_and_change_no_landmark(cut, track
         np.testing.assert_array_equal(other.confidence, tracked.confidence)
     with pytest.raises(ValueError, match="threads must be at least 1"):
         MediaPipePose(threads=0)
+    monkeypatch.delenv("PINRECON_DETECTOR_THREADS", raising=False)
     monkeypatch.setattr("pinrecon.video.mediapipe_pose.usable_cpus", lambda: 8)
     assert (detector_threads(), detector_threads(2), detector_threads(3), detector_threads(16)) == (4, 4, 2, 1)
+    monkeypatch.setenv("PINRECON_DETECTOR_THREADS", "3")
+    with MediaPipePose() as pose:
+        assert detector_threads() == 3 and pose.threads == 3
+    for bad in ("0", "two", "-1"):
+        monkeypatch.setenv("PINRECON_DETECTOR_THREADS", bad)
+        with pytest.raises(pr.InputError, match="PINRECON_DETECTOR_THREADS"):
+            detector_threads()
 
 
 def test_mediapipe_is_imported_without_matplotlib_which_stays_importable():

@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..errors import InputError
 from ..layouts import MEDIAPIPE_33
 from ..lifted import Lifted
 from ..processes import usable_cpus
@@ -122,7 +123,14 @@ MAX_DETECTOR_THREADS = 4
 def detector_threads(share: int = 1) -> int:
     """The threads MediaPipe's networks run on by default: the CPUs this process may use
     (:func:`~pinrecon.processes.usable_cpus`), divided among ``share`` detectors running at
-    once, at least 1 and at most :data:`MAX_DETECTOR_THREADS`."""
+    once, at least 1 and at most :data:`MAX_DETECTOR_THREADS`; ``PINRECON_DETECTOR_THREADS=N``
+    in the environment sets it (where other processes of the caller's already use the cores)."""
+    given = os.environ.get("PINRECON_DETECTOR_THREADS", "").strip()
+    if given:
+        if not given.isdigit() or int(given) < 1:
+            raise InputError(f"must be a whole number of threads, at least 1; got {given!r}",
+                             field="PINRECON_DETECTOR_THREADS")
+        return int(given)
     return max(1, min(MAX_DETECTOR_THREADS, usable_cpus() // max(1, int(share))))
 
 
