@@ -115,8 +115,8 @@ def _import_mediapipe():
     return mp
 
 
-#: at most this many threads for the detector's networks (measured on 1080 x 1920 frames: one
-#: thread 22 ms a frame, two 14.5 ms; bench/README.md, bench_video)
+#: at most this many threads for the detector's networks by default (two halve its time a frame
+#: on 1080 x 1920 video nearly: bench/README.md, bench_video)
 MAX_DETECTOR_THREADS = 4
 
 

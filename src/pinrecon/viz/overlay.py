@@ -104,12 +104,12 @@ class KeptFrames:
     def __call__(self, t: int, frame: np.ndarray) -> None:
         if self.frames is None:
             return
-        if t != len(self.frames) or (t + 1) * self.size[0] * self.size[1] * 3 > self.budget:
-            self.frames = self._store = None  # over the budget (or not every frame seen): the overlay decodes the video
-            return
         if self._mapping is not None:
             self._mapping.join()
             self._mapping = None
+        if t != len(self.frames) or (t + 1) * self.size[0] * self.size[1] * 3 > self.budget:
+            self.frames = self._store = None  # over the budget (or not every frame seen): the overlay decodes the video
+            return
         W, H = self.size
         into = self._store[t] if self._store is not None and t < len(self._store) else None
         if (W, H) == frame.shape[1::-1] and into is None:
@@ -124,8 +124,8 @@ class KeptFrames:
 
 def frame_store(n: int, height: int, width: int) -> np.ndarray:
     """An (n, height, width, 3) uint8 array whose memory is mapped in at once (Linux's
-    ``MAP_POPULATE``: one call, not a page fault per 4 KiB as the frames fill it, 10 us each on a
-    virtual machine: 0.3 s of a 100-frame video's tracking here); a plain ``np.empty`` elsewhere."""
+    ``MAP_POPULATE``: one call, not a page fault per 4 KiB page as the frames fill it, on the CPU
+    the detector shares); a plain ``np.empty`` elsewhere."""
     size = n * height * width * 3
     populate = getattr(mmap, "MAP_POPULATE", None)
     if populate is None or size == 0:
