@@ -359,6 +359,9 @@ def test_kept_frames_fill_a_store_mapped_at_once_and_go_on_past_it():
     assert all(np.array_equal(a, b) for a, b in zip(whole.frames, again))
     assert kept.frames[0].base is not None and kept.frames[5].base is None  # in the store, then its own
     assert KeptFrames(info, 32, max_width=None, budget=3 * 18 * 32 * 3).frames is None
+    counted, uncounted = VideoInfo("v.mp4", 30.0, 36, 64, 100), VideoInfo("v.mp4", 30.0, 36, 64, 0)
+    assert [counted.frames_read(m) for m in (None, 20, 200)] == [100, 20, 100]
+    assert [uncounted.frames_read(m) for m in (None, 50)] == [0, 50]
     store = frame_store(3, 4, 5)
     store[2, 3, 4, 1] = 9
     assert store.shape == (3, 4, 5, 3) and store.dtype == np.uint8 and store.sum() == 9

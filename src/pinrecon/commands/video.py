@@ -229,9 +229,8 @@ def _run(args, infos, files, stages, t_start, plots, auto, tracked) -> dict:
             if not args.no_overlay:  # the overlay's frames kept as the detector decodes them (short videos)
                 from ..viz.overlay import KeptFrames
 
-                n = min(info.frames, args.max_frames) if info.frames and args.max_frames else info.frames
-                kept[i] = KeptFrames(info, budget=KeptFrames.BUDGET // len(args.videos), frames=n,
-                                     **_overlay_bounds(args))
+                kept[i] = KeptFrames(info, budget=KeptFrames.BUDGET // len(args.videos),
+                                     frames=info.frames_read(args.max_frames), **_overlay_bounds(args))
             tr = track_video(video, fps=args.fps, max_frames=args.max_frames, model_complexity=args.model_complexity,
                              progress=not args.quiet, on_frame=kept[i], info=info, crop=args.crop)
         tr.lifted.camera = i

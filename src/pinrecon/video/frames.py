@@ -54,6 +54,11 @@ class VideoInfo:
         """``(width, height)`` in pixels, as ``--image-size`` takes it."""
         return self.width, self.height
 
+    def frames_read(self, max_frames: int | None = None) -> int:
+        """How many frames a pass of at most ``max_frames`` reads, as the container says: its
+        count (0: it says none) up to ``max_frames``, or ``max_frames`` when it says none."""
+        return self.frames if max_frames is None else min(self.frames or max_frames, max_frames)
+
 
 def _open(path):
     cv2 = require_cv2()

@@ -32,8 +32,14 @@ from ..layouts import MEDIAPIPE_33
 from ..lifted import Lifted
 from ..processes import usable_cpus
 from ..tracks import Tracks
-from . import frames
-from .frames import EXTRA_HINT, MissingVideoExtraError, iter_frames, require_cv2, video_info
+from .frames import (
+    EXTRA_HINT,
+    MissingVideoExtraError,
+    crop_box,
+    iter_frames,
+    require_cv2,
+    video_info,
+)
 from .progress import FrameProgress
 
 if TYPE_CHECKING:
@@ -265,12 +271,12 @@ def track_video(
     :class:`~pinrecon.video.MissingVideoExtraError`.
     """
     info = video_info(path, fps=fps) if info is None else info
-    total = info.frames if max_frames is None else min(info.frames or max_frames, max_frames)
+    total = info.frames_read(max_frames)
     uv, vis, world = [], [], []
     name = os.path.basename(str(path))
     cv2 = require_cv2()
 
-    x0, y0, cw, ch = frames.crop_box(crop, info)
+    x0, y0, cw, ch = crop_box(crop, info)
 
     def prepare(t, frame):  # in the decoding thread, beside the detector (both let go of the GIL)
         if on_frame is not None:

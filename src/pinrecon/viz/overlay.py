@@ -69,7 +69,7 @@ class KeptFrames:
     decode the video again. Frames are kept up to ``budget`` bytes (default
     :attr:`BUDGET`); a video with more lets them all go (:attr:`frames` is then None) and the
     overlay decodes it as usual. ``frames``: how many the pass will read (default the video's
-    count, ``info.frames``): their memory is mapped in at once, in a thread, before the first
+    count, ``info.frames``; :meth:`~pinrecon.video.VideoInfo.frames_read`): their memory is mapped in at once, in a thread, before the first
     arrives (:func:`frame_store`).
 
     >>> kept = KeptFrames(video_info("clip.mp4"))                   # doctest: +SKIP
@@ -112,13 +112,13 @@ class KeptFrames:
             return
         W, H = self.size
         into = self._store[t] if self._store is not None and t < len(self._store) else None
-        if (W, H) == frame.shape[1::-1] and into is None:
+        if (W, H) != frame.shape[1::-1]:
+            kept = self._cv2.resize(frame, (W, H), dst=into, interpolation=self._cv2.INTER_AREA)
+        elif into is None:
             kept = frame.copy()
-        elif (W, H) == frame.shape[1::-1]:
+        else:
             into[...] = frame
             kept = into
-        else:
-            kept = self._cv2.resize(frame, (W, H), dst=into, interpolation=self._cv2.INTER_AREA)
         self.frames.append(kept)
 
 
