@@ -146,6 +146,28 @@ def test_a_mirrored_arm_span_is_turned_back(arm_case, margin_s):
     assert any(s.startswith("limb spans mirrored after the solve") for s in lines)
 
 
+@pytest.mark.parametrize("start", ["wrong", "truth"])
+def test_the_next_candidate_tried_beside_changes_nothing(arm_case, start):
+    """Each candidate's successor tried in a forked child meanwhile (``fork=True``) gives the
+    candidates, their verdicts, the iterations the callback hears (in order) and the result
+    of trying them one by one: from the mirrored start three of twelve are kept (the child's
+    successor of a kept one dropped and tried again from it), from the truth none of nine."""
+    *_, problem, options, wrong, truth, _ = arm_case
+    res = {"wrong": wrong, "truth": truth}[start]
+    runs = {}
+    for fork in (False, True):
+        heard = []
+        out = mirror_stage(problem, res, options, lambda rep: heard.append((rep.iteration, rep.cost)), fork=fork)
+        runs[fork] = (out, problem.reports["mirrors"].tried, heard)
+    (one, tried_one, heard_one), (two, tried_two, heard_two) = runs[False], runs[True]
+    assert [m.kept for m in tried_one].count(True) == (3 if start == "wrong" else 0)
+    assert len(tried_one) == (12 if start == "wrong" else 9)
+    assert tried_two == tried_one
+    assert heard_two == heard_one and len(heard_one) > 100
+    np.testing.assert_array_equal(two.x, one.x)
+    assert two.cost == one.cost
+
+
 def test_never_costlier_and_a_stopped_solve_is_left_as_it_is(arm_case):
     *_, problem, options, wrong, truth, _ = arm_case
     seen = []

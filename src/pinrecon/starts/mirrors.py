@@ -57,6 +57,7 @@ from itertools import pairwise
 import numpy as np
 
 from ..contact import foot_keypoints
+from ..processes import Beside, forkable
 from ..rows import JointKeyframes, Points3D
 from ..solver import SolverOptions, costs_at, globals_of, solve
 from .limbs import camera_rays, limb_chains, sphere_ray
@@ -255,7 +256,7 @@ def mirror_stage(problem, res, options: SolverOptions | None = None, callback=No
                  min_depth: float = 0.3, sigma_m: float = 0.02, pull_iterations: int = 15,
                  trial_iterations: int = 40, min_gain: float = MIN_GAIN, passes: int = 1, near: float = NEAR,
                  skip: Sequence[str] | None = None, observe=None, margin_s: float = MARGIN_S,
-                 whole_frames: int = WHOLE_FRAMES):
+                 whole_frames: int = WHOLE_FRAMES, fork: bool | None = None):
     """The solved motion ``res`` with its limbs' spans mirrored where that lowers the MAP
     cost (module docstring); ``passes`` rounds at most, a round after one that kept
     nothing is not run; chains holding a keypoint named in ``skip`` are not tried, by
@@ -268,7 +269,12 @@ def mirror_stage(problem, res, options: SolverOptions | None = None, callback=No
     (``bench/diagnose_mirrors.py``), is called after every candidate as
     ``observe(mirror, current, candidate)``: the :class:`Mirror`, the solve it was tried on
     and the candidate's solve (both at the solution's global unknowns). ``margin_s`` and
-    ``whole_frames``: the crops of a long clip's candidates (module docstring)."""
+    ``whole_frames``: the crops of a long clip's candidates (module docstring).
+
+    ``fork``: while a candidate is tried, the next one is tried beside it in a forked child
+    (:class:`~pinrecon.processes.Beside`), as if the first is not kept (most are not; when it
+    is, the child's is dropped and tried again from the kept one): the same candidates and
+    result as one by one, on both CPUs. ``None``: where :func:`~pinrecon.processes.forkable`."""
     if res.status == "stopped by callback" or len(getattr(problem, "views", ())) != 1:
         return res
     fig = problem.figure
@@ -278,49 +284,31 @@ def mirror_stage(problem, res, options: SolverOptions | None = None, callback=No
     if not chains:
         return res
     options = options or SolverOptions()
-    trial = replace(options, max_iterations=min(options.max_iterations, trial_iterations))
-    pull_options = replace(options, max_iterations=min(options.max_iterations, pull_iterations))
-    min_len = max(2, round(min_span_s * float(problem.fps or 30.0)))
-    T = problem.n_frames
-    margin = max(min_len, round(margin_s * float(problem.fps or 30.0)))
-    # every tracked point is held where it is, the chain's ends pulled to their mirrors: the
-    # limb turns over, not the body round it
-    pinned = np.unique(np.concatenate([np.asarray(problem.measurement.keypoints, int)] + [c.kp for c in chains]))
+    fps = float(problem.fps or 30.0)
+    min_len = max(2, round(min_span_s * fps))
+    trials = _Trials(problem, chains, replace(options, max_iterations=min(options.max_iterations, pull_iterations)),
+                     replace(options, max_iterations=min(options.max_iterations, trial_iterations)), sigma_m,
+                     max(min_len, round(margin_s * fps)), whole_frames, (min_len, min_depth, near))
+    ahead = forkable(problem.n_frames) if fork is None else bool(fork)
     cur, cost, tried = res, float(res.cost), []
     for _ in range(max(1, int(passes))):
         n_kept = sum(m.kept for m in tried)
-        g, camera, K = _seen(problem, cur)
-        for chain in chains:
-            for mode in MODES if chain.n_segments > 1 else ("first",):
-                seg = 1 if mode == "end" else 0
-                ratio = _depth_ratio(camera, K, chain.kp[seg], chain.kp[seg + 1])
-                for a, b in crossing_spans(ratio, min_len, min_depth, near):
-                    targets = K[a:b][:, pinned].copy()
-                    moved = mirrored_points(camera, K[a:b][:, chain.kp], mode)
-                    for j, k in enumerate(chain.kp[1:]):
-                        targets[:, int(np.searchsorted(pinned, k))] = moved[:, j]
-                    held = None if g is None else np.zeros(len(g), bool)  # a mirror judged at the solution's globals
-                    lo, hi = max(0, a - margin), min(T, b + margin)
-                    sub = problem.cropped(lo, hi) if T > whole_frames and hi - lo < T else None
-                    if sub is None:  # the whole clip
-                        lo, hi, base = 0, T, problem
-                    else:  # the span and its margins alone, their ends held where they are; judged on the clip
-                        base = sub.with_rows(_held_ends(fig, cur.x, lo, hi, T))
-                    pull = base.with_rows([Points3D(np.arange(a - lo, b - lo), pinned, targets, sigma_m, name="mirror")])
-                    pulled = solve(pull, cur.x[lo:hi], pull_options, callback, active=problem.active, g0=g,
-                                   active_globals=held)
-                    cand = solve(base, pulled.x, trial, callback, active=problem.active, g0=g, active_globals=held)
-                    if sub is not None:
-                        cand = _spliced(problem, cur, cand, lo, g)
-                    gain = cost - float(cand.cost)
-                    keep = gain > min_gain and cand.status != "stopped by callback"
-                    turned = _turned(camera, K[a:b], problem.keypoints(fig.normalize(cand.x)[a:b], g), chain.kp, mode)
-                    tried.append(Mirror(chain.label, mode, a, b, bool(keep), float(gain), bool(turned)))
-                    if observe is not None:
-                        observe(tried[-1], cur, cand)
-                    if keep:
-                        cur, cost = cand, float(cand.cost)
-                        g, camera, K = _seen(problem, cur)
+        seen = _seen(problem, cur)
+        cand, pos = trials.next(_START, seen)
+        while cand is not None:
+            nxt, pos_nxt = trials.next(pos, seen) if ahead else (None, None)
+            for c, (out, turned) in trials.tried(cur, seen, cand, nxt, callback, cost - min_gain):
+                gain = cost - float(out.cost)
+                keep = gain > min_gain and out.status != "stopped by callback"
+                tried.append(Mirror(c.chain.label, c.mode, c.a, c.b, bool(keep), float(gain), bool(turned)))
+                if observe is not None:
+                    observe(tried[-1], cur, out)
+                if c is nxt:
+                    pos = pos_nxt
+                if keep:
+                    cur, cost = out, float(out.cost)
+                    seen = _seen(problem, cur)
+            cand, pos = trials.next(pos, seen)
         if sum(m.kept for m in tried) == n_kept:
             break
     reports = getattr(problem, "reports", None)
@@ -329,3 +317,102 @@ def mirror_stage(problem, res, options: SolverOptions | None = None, callback=No
     if not any(m.kept for m in tried):
         return res
     return solve(problem, cur.x, options, callback, active=problem.active, g0=globals_of(cur))
+
+
+@dataclass(frozen=True)
+class _Candidate:
+    """A limb chain mirrored in ``mode`` over frames ``[a, b)``."""
+
+    chain: object
+    mode: str
+    a: int
+    b: int
+
+
+#: where :meth:`_Trials.next` starts: the first chain's first mode, its spans not yet cut
+_START = (0, None, 0)
+
+
+@dataclass
+class _Trials:
+    """The candidates of :func:`mirror_stage` in the order they are tried, and their trials."""
+
+    problem: object
+    chains: list
+    pull_options: SolverOptions
+    trial_options: SolverOptions
+    sigma_m: float
+    margin: int
+    whole_frames: int
+    spans: tuple  # crossing_spans' min_len, min_depth, near
+
+    def __post_init__(self):
+        self.modes = [(c, m) for c in self.chains for m in (MODES if c.n_segments > 1 else ("first",))]
+        # every tracked point is held where it is, the chain's ends pulled to their mirrors: the
+        # limb turns over, not the body round it
+        self.pinned = np.unique(np.concatenate([np.asarray(self.problem.measurement.keypoints, int)]
+                                               + [c.kp for c in self.chains]))
+
+    def next(self, pos, seen):
+        """``(candidate, position after it)`` from walk position ``pos`` ``(mode index, spans,
+        span index)``, or ``(None, None)`` after the last: a chain's spans in a mode are cut
+        where the walk enters that mode, from the solution ``seen`` then (:func:`_seen`)."""
+        k, spans, s = pos
+        while k < len(self.modes):
+            chain, mode = self.modes[k]
+            if spans is None:
+                seg = 1 if mode == "end" else 0
+                spans, s = crossing_spans(_depth_ratio(seen[1], seen[2], chain.kp[seg], chain.kp[seg + 1]),
+                                          *self.spans), 0
+            if s < len(spans):
+                a, b = spans[s]
+                return _Candidate(chain, mode, int(a), int(b)), (k, spans, s + 1)
+            k, spans = k + 1, None
+        return None, None
+
+    def tried(self, cur, seen, cand, nxt, callback, kept_below: float):
+        """``[(candidate, (solve, turned))]``: ``cand`` tried on the solution ``cur``; unless
+        its cost falls below ``kept_below`` (it is kept), and where ``nxt`` is given, ``nxt`` too, tried meanwhile in a forked
+        child (its iterations reported to ``callback`` once taken; where the callback stops
+        them, tried again here, where it is heard)."""
+        side = None if nxt is None else Beside(self.trial, cur, seen, nxt, None, fork=True)
+        try:
+            first = self.trial(cur, seen, cand, callback)
+            if side is None or float(first[0].cost) < kept_below:
+                return [(cand, first[:2])]
+            second = side.result()
+            if callback is not None and any(callback(rep) for rep in second[2]):
+                second = self.trial(cur, seen, nxt, callback)
+            return [(cand, first[:2]), (nxt, second[:2])]
+        finally:
+            if side is not None:
+                side.cancel()
+
+    def trial(self, cur, seen, cand, callback):
+        """``(solve, turned, iterations)``: ``cand`` pulled to its mirrored points from ``cur``
+        and released, at the solution's global unknowns; on a long clip the span and its
+        margins alone, judged on the whole clip."""
+        problem, fig = self.problem, self.problem.figure
+        g, camera, K = seen
+        chain, mode, a, b = cand.chain, cand.mode, cand.a, cand.b
+        targets = K[a:b][:, self.pinned].copy()
+        moved = mirrored_points(camera, K[a:b][:, chain.kp], mode)
+        for j, k in enumerate(chain.kp[1:]):
+            targets[:, int(np.searchsorted(self.pinned, k))] = moved[:, j]
+        held = None if g is None else np.zeros(len(g), bool)  # a mirror judged at the solution's globals
+        T = problem.n_frames
+        lo, hi = max(0, a - self.margin), min(T, b + self.margin)
+        sub = problem.cropped(lo, hi) if T > self.whole_frames and hi - lo < T else None
+        if sub is None:  # the whole clip
+            lo, hi, base = 0, T, problem
+        else:  # the span and its margins alone, their ends held where they are; judged on the clip
+            base = sub.with_rows(_held_ends(fig, cur.x, lo, hi, T))
+        pull = base.with_rows([Points3D(np.arange(a - lo, b - lo), self.pinned, targets, self.sigma_m, name="mirror")])
+        pulled = solve(pull, cur.x[lo:hi], self.pull_options, callback, active=problem.active, g0=g,
+                       active_globals=held)
+        out = solve(base, pulled.x, self.trial_options, callback, active=problem.active, g0=g, active_globals=held)
+        iterations = list(pulled.report) + list(out.report)
+        if sub is not None:
+            out = _spliced(problem, cur, out, lo, g)
+        turned = _turned(camera, K[a:b], problem.keypoints(fig.normalize(out.x)[a:b], g), chain.kp, mode)
+        return out, turned, iterations
