@@ -18,8 +18,9 @@ over the whole sequence (canonical member of the reflection pair).
 from __future__ import annotations
 
 import numpy as np
-from scipy.optimize import least_squares
-from scipy.special import chdtri  # chi2.ppf(q, k) = chdtri(k, 1 - q), without importing scipy.stats (0.9 s)
+
+# chi2.ppf(q, k) = chdtri(k, 1 - q), without importing scipy.stats (0.9 s)
+from scipy.special import chdtri
 
 from .conics import pow2_scale, readonly
 from .fit_types import GroupFit
@@ -109,6 +110,9 @@ class _Model:
 
 
 def _refine(un: np.ndarray, x0: np.ndarray, loss: str, f_scale: float):
+    # imported here: scipy.optimize takes 0.07 s to import, and most runs fit no planar group
+    from scipy.optimize import least_squares
+
     model = _Model(un)
     res = least_squares(
         model.residuals,
