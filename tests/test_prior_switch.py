@@ -214,12 +214,15 @@ def test_a_walk_in_windows_the_default_knows_solves_its_leading_stretch_once(mon
 
 
 @pytest.mark.slow
-def test_a_degenerate_focal_length_solves_again_with_the_broader_prior_and_the_lifter(tmp_path):
+def test_a_degenerate_focal_length_solves_again_with_the_broader_prior_and_the_lifter(tmp_path, monkeypatch):
     """The fast spin (CMU 05_11, 100 frames) as a detector sees it, one camera, the auto camera, no
     cues: the first solve bends depths and limb lengths to a 239 px focal length (0.11 image
     diagonals, 265 mm PA-MPJPE) on poses the default prior finds familiar. That focal length alone
     sends the clip down the broader route (the mixture prior, pinrecon's lifter), and the summary
-    says why. Truth: the bundled motion's own keypoints."""
+    says why. By default the clip takes that route before any first solve: the search's base solve
+    already finds its poses unfamiliar (``pinrecon.stages.EARLY_SWITCH``), and the result is the
+    same to the last digit. Truth: the bundled motion's own keypoints."""
+    from pinrecon import stages
     from pinrecon.metrics import pa_mpjpe
     from pinrecon.synthetic import detector_faults
 
@@ -231,7 +234,13 @@ def test_a_degenerate_focal_length_solves_again_with_the_broader_prior_and_the_l
     size = (1920, 1080)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
+        early = pr.reconstruct(pr.Figure.human(), tracks, "auto", image_size=size)
+        monkeypatch.setattr(stages, "EARLY_SWITCH", (0.0, np.inf))  # judged after the first solve, as before
         res = pr.reconstruct(pr.Figure.human(), tracks, "auto", image_size=size)
+    assert bool(early.extras["prior_switch_early"]) and "prior_switch_focal_px" not in early.extras
+    assert str(early.extras["prior_model"]) == "human_pose_mixture"
+    assert "at the start's brief solve" in early.summary()
+    np.testing.assert_array_equal(early.q, res.q)
     diag = float(np.hypot(*size))
     first = float(res.extras["prior_switch_focal_px"])
     assert first < 0.25 * diag  # the first solve's, past the plausible range

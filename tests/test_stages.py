@@ -170,6 +170,7 @@ def test_the_switched_solve_made_beside_is_the_one_made_after(clip, human, monke
 
     reconstruct_module = sys.modules["pinrecon.reconstruct"]
     monkeypatch.setattr(reconstruct_module, "switch_share", lambda *a: -1.0)  # every clip switches
+    monkeypatch.setattr(stages_module, "_judged_base", lambda run: None)  # judged after its first solve
     real = stages_module.solve
     out = {}
     for spare in (False, True):
@@ -190,6 +191,52 @@ def test_the_switched_solve_made_beside_is_the_one_made_after(clip, human, monke
     assert beside.solve.cost == serial.solve.cost
     assert (n_serial, n_beside) == (2, 1)  # the first solve and the switched one; the first alone
     assert heard_beside == heard_serial
+
+
+@pytest.mark.parametrize("share", [1.0, 0.0])
+def test_the_switch_judged_at_the_search_base(share, short_walk, human):
+    """Without cues the prior's switch is judged first at the multi-hypothesis search's base
+    solve (``EARLY_SWITCH``). Where the default prior does not know those poses (share 1 here) the
+    clip is solved with the broader prior at once: no first solve, no child beside it, and the
+    result of switching after the first solve to the last digit. Where it knows them (share 0) no
+    switched solve is made beside the first in case the clip switches, and the result is the one
+    made with that child. Ground truth: the same call judged after its first solve only."""
+    from pinrecon import stages as stages_module
+
+    reconstruct_module = sys.modules["pinrecon.reconstruct"]
+    real_solve, real_beside = stages_module.solve, stages_module.Beside
+
+    def run(early):
+        calls, children = [], []
+        with pytest.MonkeyPatch.context() as mp:
+            mp.setattr(stages_module, "forkable", lambda *a: True)
+            if share:
+                mp.setattr(reconstruct_module, "switch_share", lambda *a: -1.0)  # the first solve's judge switches too
+            if early:
+                mp.setattr(stages_module, "unfamiliar_share", lambda extras: share)  # at the base
+            else:
+                mp.setattr(stages_module, "_judged_base", lambda run: None)
+            mp.setattr(stages_module, "solve", lambda *a, **k: calls.append(1) or real_solve(*a, **k))
+            mp.setattr(stages_module, "Beside", lambda *a, **k: children.append(1) or real_beside(*a, **k))
+            return _solve(short_walk, human), len(calls), len(children)
+
+    out = {early: run(early) for early in (False, True)}
+    (late, n_late, kids_late), (res, n_early, kids_early) = out[False], out[True]
+    np.testing.assert_array_equal(res.q, late.q)
+    assert res.solve.cost == late.solve.cost
+    prior = {s.name: s.changed for s in res.stages}["prior"]
+    if share:
+        assert prior.startswith("pose prior human_pose -> human_pose_mixture (100 % of the poses unfamiliar at the")
+        assert bool(res.extras["prior_switch_early"]) and "prior_switch_early" not in late.extras
+        assert str(res.extras["prior_model"]) == "human_pose_mixture" == str(late.extras["prior_model"])
+        assert (n_late, n_early) == (1, 1)  # here: the first solve (the switched one made beside), or the switched one
+        assert (kids_late, kids_early) == (1, 0)
+    else:
+        assert prior == "skipped: nothing to do" and "prior_model" not in res.extras
+        assert (kids_late, kids_early) == (1, 0)  # the switched solve made beside in case: not any more
+    for key, value in late.extras.items():
+        if key not in ("run_time_s", "prior_default_unfamiliar", "prior_switch_early"):
+            np.testing.assert_array_equal(res.extras[key], value, err_msg=key)
 
 
 def test_a_callback_that_stops_the_switched_solve_is_obeyed_beside(cued_walk, human, monkeypatch):

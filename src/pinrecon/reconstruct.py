@@ -367,6 +367,8 @@ def _result(run: Run, reports) -> Result:
         result.extras.update(switch_extras(*run.switch))
         if run.switch_focal is not None:
             result.extras["prior_switch_focal_px"] = np.float64(run.switch_focal)
+        if run.early is not None:  # judged at the start's base solve, before any first solve
+            result.extras["prior_switch_early"] = np.bool_(True)
     if run.conflict is not None:
         result.extras.update(run.conflict.to_extras())
     result.extras.update(run.relabelled)

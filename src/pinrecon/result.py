@@ -244,9 +244,12 @@ class Result:
                          f"{float(x['prior_switch_focal_px']):.0f} px, where no ordinary lens is: a degenerate solution, "
                          "solved again with this broader prior and the lifter's cues, as for unfamiliar poses)")
         elif "prior_default_unfamiliar" in x:
+            early = bool(x.get("prior_switch_early", False))
             lines.append(f"pose prior: {x['prior_model']!s} (the default did not know "
-                         f"{100 * float(x['prior_default_unfamiliar']):.0f} % of the frames' poses as first solved: solved again "
-                         "with this broader one; pinrecon.unfamiliar.broader_prior)")
+                         f"{100 * float(x['prior_default_unfamiliar']):.0f} % of the frames' poses "
+                         + ("at the start's brief solve: solved with this broader one from the start"
+                            if early else "as first solved: solved again with this broader one")
+                         + "; pinrecon.unfamiliar.broader_prior)")
         conflict = [str(j) for j in x.get("prior_conflict_joints", ())]
         if conflict:
             lines.append(f"the data disagree with the pose prior on {len(conflict)} joint(s) ({', '.join(conflict)}): "

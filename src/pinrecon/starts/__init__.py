@@ -33,7 +33,8 @@ from .lifted import has_lifted, lifted_start
 from .planarity import planarity_start
 from .rest import rest_start
 
-__all__ = ["available_starts", "register_start", "get_start", "initial_trajectory", "auto_start", "sparse_keyframes"]
+__all__ = ["available_starts", "register_start", "get_start", "initial_trajectory", "auto_start", "searches",
+           "sparse_keyframes"]
 
 Start = Callable[[ReconstructionProblem], np.ndarray]
 
@@ -63,12 +64,22 @@ def auto_start(problem: ReconstructionProblem, lifted: bool = True) -> np.ndarra
     correlated pose prior it is as good on the walk (23.4 / 6.0 % against 23.1 / 5.9 %) and
     the run (31.0 / 4.1 % against 31.0 / 4.2 %) and better on the dance (116 against 147
     mm), and on the lab case it picks the planarity seed (walk 23.3 -> 1.1 % flips)."""
-    one_camera = len(getattr(problem, "views", None) or [None]) == 1  # several cameras see depth
-    if problem.measurement is not None and problem.tracks is not None and one_camera and sparse_keyframes(problem):
+    if _one_view_sparse(problem):
         return lifted_start(problem) if lifted and has_lifted(problem) else hypotheses_start(problem)
     if problem.keyframes is not None and len(problem.keyframes):
         return keyframe_start(problem)
     return rest_start(problem)
+
+
+def _one_view_sparse(problem: ReconstructionProblem) -> bool:
+    one_camera = len(getattr(problem, "views", None) or [None]) == 1  # several cameras see depth
+    return problem.measurement is not None and problem.tracks is not None and one_camera and sparse_keyframes(problem)
+
+
+def searches(problem: ReconstructionProblem, lifted: bool = True) -> bool:
+    """Whether :func:`auto_start` (with ``lifted``) starts ``problem`` with the
+    multi-hypothesis search (:func:`~.hypotheses.hypotheses_start`)."""
+    return _one_view_sparse(problem) and not (lifted and has_lifted(problem))
 
 
 _STARTS: dict[str, Start] = {

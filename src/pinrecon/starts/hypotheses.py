@@ -95,13 +95,16 @@ from .paths import min_sum_path, span_gaps
 from .rest import rest_start
 from .turns import turns_array, wind_turns
 
-__all__ = ["UNCERTAIN_GAP", "HypothesisReport", "Span", "frame_costs", "hypotheses_start", "min_sum_path",
-           "search_hypotheses", "span_gaps", "splice_path"]
+__all__ = ["BASE_OPTIONS", "UNCERTAIN_GAP", "HypothesisReport", "Span", "base_solve", "frame_costs", "hypotheses_start",
+           "min_sum_path", "search_hypotheses", "span_gaps", "splice_path"]
 
 #: spans whose cost gap is below this many nats (a likelihood ratio under e^2 = 7.4) are
 #: reported as uncertain; on the detector-like walk of bench_real 12 of 14 spans above it
 #: had their limb on the right side in most frames, against 13 of 29 below it
 UNCERTAIN_GAP = 2.0
+
+#: the base's brief solve (step 1 of the module docstring)
+BASE_OPTIONS = SolverOptions(max_iterations=30, ftol=1e-3)
 
 
 # ----------------------------------------------------------------------------- report
@@ -165,12 +168,18 @@ class HypothesisReport:
 
 
 # ----------------------------------------------------------------------------- search
-def _base_trajectory(problem, options):
+def base_solve(problem, options: SolverOptions | None = None) -> np.ndarray:
+    """The search's base before it is normalised (``search_hypotheses(problem, base=...)``
+    takes it): the problem solved briefly (``options``, by default :data:`BASE_OPTIONS`) from
+    the engine's own start, the keyframes' poses or the rest pose placed on the tracks."""
     kf = problem.keyframes is not None and len(problem.keyframes)
     Q = keyframe_start(problem) if kf else rest_start(problem)
     Q = problem.figure.clamp(Q, margin=1e-3)
-    res = solve(problem, Q, options, active=problem.active)
-    return problem.figure.normalize(res.x)
+    return solve(problem, Q, options or BASE_OPTIONS, active=problem.active).x
+
+
+def _base_trajectory(problem, options):
+    return problem.figure.normalize(base_solve(problem, options))
 
 
 def _state_bits(n_seg):
@@ -478,7 +487,7 @@ def search_hypotheses(
     """
     fig, cam = problem.figure, problem.camera
     T = problem.n_frames
-    base_options = base_options or SolverOptions(max_iterations=30, ftol=1e-3)
+    base_options = base_options or BASE_OPTIONS
     ik_options = ik_options or SolverOptions(max_iterations=15, ftol=1e-4)
     final_options = final_options or SolverOptions(max_iterations=40, ftol=1e-4)
     Q_base = _base_trajectory(problem, base_options) if base is None else fig.normalize(np.asarray(base, float))
@@ -631,10 +640,11 @@ def _q_of(figure, v_mask):
     return np.array(out, int)
 
 
-def hypotheses_start(problem: ReconstructionProblem) -> np.ndarray:
+def hypotheses_start(problem: ReconstructionProblem, base: np.ndarray | None = None) -> np.ndarray:
     """The multi-hypothesis start (``seed="hypotheses"``); its :class:`HypothesisReport`
-    is left in ``problem.reports["hypotheses"]``."""
-    Q0, report = search_hypotheses(problem)
+    is left in ``problem.reports["hypotheses"]``. ``base``: the search's base when already
+    solved (:func:`base_solve` of ``problem``)."""
+    Q0, report = search_hypotheses(problem, base=base)
     reports = getattr(problem, "reports", None)
     if reports is not None:
         reports["hypotheses"] = report
