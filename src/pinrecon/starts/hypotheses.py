@@ -519,11 +519,16 @@ def search_hypotheses(
         res = solve(problem, Q0, final_options, active=problem.active)
         return res.cost, fig.normalize(res.x), labels, states, gaps, spans, Qb, name
 
+    def solved_long(Qs):
+        return solve(problem, fig.clamp(Qs, 1e-3), final_options, active=problem.active)
+
     flipped = None
     if torso and fig.floating and len(trunk) >= 3:  # the flipped trunk's search in a child meanwhile, where it may
         flipped = Beside(candidate, Q_base, "trunk flipped", True, fork=forkable(T))
     try:
-        results = [candidate(Q_base, "limbs")] + ([flipped.result()] if flipped is not None else [])
+        results = [candidate(Q_base, "limbs")]
+        base_long = solved_long(Q_base)  # below: made here while the child searches (its search takes longer)
+        results += [flipped.result()] if flipped is not None else []
     finally:
         if flipped is not None:
             flipped.cancel()
@@ -555,7 +560,7 @@ def search_hypotheses(
             others.append(("planarity", seed))
     report.cost = float(cost)
     for label, Qs in others:
-        ref = solve(problem, fig.clamp(Qs, 1e-3), final_options, active=problem.active)
+        ref = base_long if label == "base" else solved_long(Qs)
         report.alternatives[label] = float(ref.cost)
         if ref.cost < cost:
             cost, Q, won = ref.cost, fig.normalize(ref.x), label
