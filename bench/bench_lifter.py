@@ -25,7 +25,8 @@ Pose2Sim's real balancing trial: each camera's OpenPose detections (BODY_25B, 10
 four-camera triangulation (PA-MPJPE, flips along that camera's line of sight), shipped weights
 (nobody of that trial is in CMU's data).
 
-``--map`` also runs ``pinrecon.reconstruct`` (``Figure.human()``, the true camera, no keyframes)
+``--map`` also runs ``pinrecon.reconstruct`` (``Figure.human()``, the true camera, no keyframes; ``--keyframes
+first+last``: 3D point keyframes on the first and last frames)
 on the CMU cases: today's default path (``lifter="none"``) and the same with the fold's lifter
 (``lifter=FILE``, :func:`pinrecon.lifter.attach_lifter`), the lifter alone beside them; and on
 Pose2Sim's trial, each camera with the auto camera, with and without the shipped lifter (slow:
@@ -95,11 +96,11 @@ def score_lifted(L, P_true, camera):
             "flips": 100.0 * metrics.flip_rate(P, P_true, camera, segs)}
 
 
-def cmu_case(clip, azimuth):
+def cmu_case(clip, azimuth, keyframes="none"):
     fig, q, fps = bundled_motion(clip)
-    tracks, cam, _, P, _ = bench_real.tracked_case(fig, q, fps, azimuth, "none", seed=int(azimuth))
+    tracks, cam, keys, P, _ = bench_real.tracked_case(fig, q, fps, azimuth, keyframes, seed=int(azimuth))
     order = [list(tracks.names).index(n) for n in BODY]
-    return tracks, cam, P[:, order]
+    return tracks, cam, P[:, order], keys
 
 
 def run_map(tracks, cam, P_true, lifter="none", weight=None, from_start=False, **kw):
@@ -199,6 +200,8 @@ def main(argv=None):
     ap.add_argument("--from-start", action="store_true",
                     help="the MAP + lifter column with the lifter's rows in every solve (default: as reconstruct's "
                     "default, joining with the broader prior where the default prior does not know the clip)")
+    ap.add_argument("--keyframes", default="none", choices=["none", "first+last"],
+                    help="the CMU cases' 3D point keyframes (5 cm; default none, the issue's main case)")
     ap.add_argument("--weight", type=float, help="Weights.lifted of the MAP with the lifter (default: Weights' own)")
     ap.add_argument("--seed", help="the start of the MAP with the lifter (reconstruct's seed=; default its own: with "
                     "--from-start the lifted start)")
@@ -237,8 +240,8 @@ def main(argv=None):
             for az in a.angles:
                 key = (clip, az)
                 if key not in cases:
-                    cases[key] = cmu_case(clip, az)
-                tracks, cam, P = cases[key]
+                    cases[key] = cmu_case(clip, az, a.keyframes)
+                tracks, cam, P, _ = cases[key]
                 r = score_lifted(lift(tracks, cam, model=models[fold]), P, cam)
                 r["ms"] = time_per_1000(models[fold], tracks, cam)
                 rows.append(r)
@@ -249,7 +252,8 @@ def main(argv=None):
                   f"| {m['flips']:.1f} | {max(r['flips'] for r in rows):.1f} | {target} | {1000 * m['ms']:.0f} |",
                   flush=True)
     if a.map:
-        print("\nThe MAP (pinrecon.reconstruct, Figure.human(), the true camera, no keyframes): today's default path "
+        kf = "no keyframes" if a.keyframes == "none" else "point keyframes (5 cm) on the first and last frames"
+        print(f"\nThe MAP (pinrecon.reconstruct, Figure.human(), the true camera, {kf}): today's default path "
               "(lifter='none') and with the fold's lifter (lifter=FILE: its lifted-pose rows"
               + (f", Weights.lifted {a.weight:g}" if a.weight is not None else "")
               + (", in every solve" if a.from_start else ", joining with the broader prior as by default")
@@ -263,10 +267,10 @@ def main(argv=None):
                 continue
             for clip in [c for c in clips if c in a.clips]:
                 for az in a.angles:
-                    tracks, cam, P = cases.get((clip, az)) or cmu_case(clip, az)
+                    tracks, cam, P, keys = cases.get((clip, az)) or cmu_case(clip, az, a.keyframes)
                     alone = score_lifted(lift(tracks, cam, model=models[fold]), P, cam)
-                    d = run_map(tracks, cam, P)  # lifter="none"
-                    w = run_map(tracks, cam, P, str(fold_path(a.folds, fold)), a.weight, a.from_start,
+                    d = run_map(tracks, cam, P, keyframes=keys)  # lifter="none"
+                    w = run_map(tracks, cam, P, str(fold_path(a.folds, fold)), a.weight, a.from_start, keyframes=keys,
                                 **({'seed': a.seed} if a.seed else {}))
                     assert not d["lifted"]
                     print(f"| {CLIP_NAME[clip]} | {az:.0f} | {fold} | {alone['pa']:.1f} / {alone['flips']:.1f} "
