@@ -191,6 +191,44 @@ def test_a_clip_in_windows_judges_its_prior_on_the_leading_stretch(random_motion
     assert "of the leading stretch's poses unfamiliar" in res.stages[0].changed
 
 
+def test_a_clip_in_windows_without_keyframes_is_judged_at_its_stretchs_base(random_motion, monkeypatch):
+    """Without keyframes (the search starts the leading stretch) the prior is judged first at the
+    search's base solve of the stretch (``pinrecon.windowed.lead_base``): these random poses are
+    unfamiliar there, so no stretch is solved with the default prior, and no broader stretch is
+    made beside it; the windows are solved once, with the broader prior, to the last digit as when
+    judged after the stretch's solve. Ground truth: the same call judged after that solve."""
+    import sys
+
+    reconstruct_module = sys.modules["pinrecon.reconstruct"]
+    fig, tracks, cam, _ = random_motion
+    real_windowed, real_lead, real_beside = (reconstruct_module.solve_windowed, reconstruct_module.solve_lead,
+                                             reconstruct_module.Beside)
+    runs = {}
+    for early in (False, True):
+        calls = {"windows": [], "leads": 0, "children": 0}
+        with pytest.MonkeyPatch.context() as mp:
+            mp.setattr(reconstruct_module, "forkable", lambda *a: True)
+            if not early:
+                mp.setattr(reconstruct_module, "lead_base", lambda *a, **k: None)
+            mp.setattr(reconstruct_module, "solve_windowed", lambda problem, *a, **k: calls["windows"].append(
+                problem.weights.pose_prior_model) or real_windowed(problem, *a, **k))
+            mp.setattr(reconstruct_module, "solve_lead", lambda *a, **k: calls.update(leads=calls["leads"] + 1)
+                       or real_lead(*a, **k))
+            mp.setattr(reconstruct_module, "Beside", lambda *a, **k: calls.update(children=calls["children"] + 1)
+                       or real_beside(*a, **k))
+            runs[early] = _solve(fig, tracks, cam, None, window=20), calls
+    (late, late_calls), (res, calls) = runs[False], runs[True]
+    assert late_calls == {"windows": ["human_pose_mixture"], "leads": 1, "children": 1}
+    assert calls == {"windows": ["human_pose_mixture"], "leads": 0, "children": 0}
+    np.testing.assert_array_equal(res.q, late.q)
+    assert bool(res.extras["prior_switch_early"]) and "prior_switch_early" not in late.extras
+    assert float(res.extras["prior_default_unfamiliar"]) > 2 * 0.2  # twice the switch's share of one view
+    assert "of the leading stretch's poses unfamiliar at its base solve" in res.stages[0].changed
+    for key, value in late.extras.items():
+        if key not in ("run_time_s", "prior_default_unfamiliar"):
+            np.testing.assert_array_equal(res.extras[key], value, err_msg=key)
+
+
 def test_a_walk_in_windows_the_default_knows_solves_its_leading_stretch_once(monkeypatch):
     """Judged familiar, the leading stretch's solve (with the limb lengths as globals) is the one
     the windows hold the lengths from: solved once, not again by the windows."""

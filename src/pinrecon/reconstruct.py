@@ -43,7 +43,15 @@ from .rows import Measurement2D
 from .rows.lifted import LiftedPose, disagreement_extras
 from .rows.posture import prior_for
 from .solver import SolveResult, SolverOptions, globals_of, solve
-from .stages import Run, StageReport, check_skip, relabel_inputs, run_stages, with_lengths
+from .stages import (
+    EARLY_SWITCH,
+    Run,
+    StageReport,
+    check_skip,
+    relabel_inputs,
+    run_stages,
+    with_lengths,
+)
 from .starts import available_starts, get_start, initial_trajectory, sparse_keyframes
 from .starts.camera_auto import (
     AutoCamera,
@@ -65,7 +73,7 @@ from .unfamiliar import (
     switch_share,
     unfamiliar_poses,
 )
-from .windowed import solve_lead, solve_windowed, windowed_length
+from .windowed import lead_base, solve_lead, solve_windowed, windowed_length
 
 __all__ = [
     "reconstruct",
@@ -396,13 +404,19 @@ def _reconstruct_windowed(problem, inputs, mode, calibrate, auto, start, init, s
         problem = with_lengths(inputs, mode, *found) if found else make_problem(**inputs, calibrate=mode)
     # the tracks' own lifted cues decide the limbs' reflections: no mirror stage (as pinrecon.stages)
     mirrors = not has_lifted(problem)
-    lead, switch, beside = None, None, None
+    lead, switch, beside, early = None, None, None, None
     try:
         if default is not None and not adapt:  # the prior judged on the leading stretch's poses, as its globals
-            if BROADER_PRIOR.get(default) and forkable():  # the broader prior's stretch meanwhile, in a child
+            # first at its search's base, as the stages' solve (EARLY_SWITCH): far beyond the share, no stretch solved
+            judged = lead_base(problem, start, window=span) if BROADER_PRIOR.get(default) else None
+            if judged is not None and judged[1] > EARLY_SWITCH[1] * limit:
+                early = switch = (BROADER_PRIOR[default], judged[1])
+            elif BROADER_PRIOR.get(default) and forkable() and (judged is None or judged[1] >= EARLY_SWITCH[0] * limit):
                 beside = Beside(_broader_lead, inputs, mode, found, BROADER_PRIOR[default], lift, start, options,
-                                span, fork=True)
-            lead = solve_lead(problem, start, options, callback, window=span, judge=True)
+                                span, fork=True)  # the broader prior's stretch meanwhile, in a child
+        if default is not None and not adapt and early is None:
+            lead = solve_lead(problem, start, options, callback, window=span, judge=True,
+                              base=None if judged is None else judged[0])
             unfamiliar = unfamiliar_poses(lead.problem, lead.problem.figure.normalize(lead.x))
             switch = broader_prior(default, "auto", {} if unfamiliar is None else unfamiliar.to_extras(), share=limit)
         if switch is not None:
@@ -416,8 +430,11 @@ def _reconstruct_windowed(problem, inputs, mode, calibrate, auto, start, init, s
     result = _package(problem, res, auto, identify=False, judge=default if switch else None)
     if switch is not None:
         result.extras.update(switch_extras(*switch))
+        if early is not None:
+            result.extras["prior_switch_early"] = np.bool_(True)
     changed = f"windows of {span} frames" + (
-        f", pose prior -> {switch[0]} ({100 * switch[1]:.0f} % of the leading stretch's poses unfamiliar)" if switch else "")
+        f", pose prior -> {switch[0]} ({100 * switch[1]:.0f} % of the leading stretch's poses unfamiliar"
+        f"{' at its base solve' if early else ''})" if switch else "")
     result.stages = [StageReport("windowed", time.perf_counter() - t0, float(res.initial_cost), float(res.cost),
                                  changed)]
     return result

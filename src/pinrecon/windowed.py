@@ -49,6 +49,7 @@ and, when it has a ``window`` method, a :class:`WindowReport` after each window.
 from __future__ import annotations
 
 import ctypes
+import functools
 import gc
 import math
 import multiprocessing
@@ -69,10 +70,12 @@ from .prior_yield import decided_by_keyframes, pose_prior_row, with_pose_prior
 from .problem import make_problem
 from .processes import may_fork, n_processes, usable_cpus
 from .solver import SolveResult, SolverOptions, costs_at, solve
-from .starts import initial_trajectory
+from .starts import initial_trajectory, searches
+from .starts.hypotheses import base_solve, hypotheses_start
 from .starts.mirrors import MirrorStage, mirror_stage
 from .starts.turns import TurnStage, turn_stage
 from .tracks import Keyframes
+from .unfamiliar import unfamiliar_poses, unfamiliar_share
 
 __all__ = [
     "AUTO_WINDOW_FRAMES",
@@ -80,6 +83,7 @@ __all__ = [
     "DEFAULT_WINDOW",
     "Lead",
     "WindowReport",
+    "lead_base",
     "solve_lead",
     "solve_windowed",
     "window_plan",
@@ -168,21 +172,43 @@ def _plan(problem, window: int, overlap: int | None):
     return window_plan(problem.n_frames, max(window, 2 * unit + 1), overlap, unit), overlap, unit
 
 
+def _lead_problem(problem, window: int, overlap: int | None):
+    plan, _, unit = _plan(problem, window, overlap)
+    stretch = (min(problem.n_frames - 1, max(plan[0][1], CALIBRATION_FRAMES - 1)) // unit) * unit
+    return _window_problem(problem, 0, stretch, free_globals=True, g_held=None), stretch
+
+
+def lead_base(problem, start="auto", *, window: int = DEFAULT_WINDOW, overlap: int | None = None):
+    """``(base, share)``: the leading stretch's multi-hypothesis search base
+    (:func:`pinrecon.starts.hypotheses.base_solve`), which :func:`solve_lead` takes as ``base``,
+    and the share of its poses the problem's pose prior does not know
+    (:func:`pinrecon.unfamiliar.unfamiliar_poses`); None where ``start`` (``"auto"`` only)
+    starts the stretch otherwise (lifted cues, several cameras, dense keyframes)."""
+    if not (isinstance(start, str) and start == "auto"):
+        return None
+    wp, _ = _lead_problem(problem, window, overlap)
+    if not searches(wp):
+        return None
+    base = base_solve(wp)
+    unfamiliar = unfamiliar_poses(wp, wp.figure.normalize(base))
+    return base, unfamiliar_share({} if unfamiliar is None else unfamiliar.to_extras())
+
+
 def solve_lead(problem, start="auto", options: SolverOptions | None = None, callback=None, *,
                window: int = DEFAULT_WINDOW, overlap: int | None = None, adapt_prior: bool = False,
-               judge: bool = False) -> Lead:
+               judge: bool = False, base: np.ndarray | None = None) -> Lead:
     """The leading stretch of :func:`solve_windowed` (its first :data:`CALIBRATION_FRAMES`
     frames, or the first window if longer): started, its pose prior adapted (``adapt_prior``),
     and solved with its globals free where ``problem`` has globals or ``judge`` asks for its
     poses (:func:`pinrecon.reconstruct` judges the pose prior on them). An empty :class:`Lead`
-    when there is nothing to do."""
-    plan, _, unit = _plan(problem, window, overlap)
+    when there is nothing to do. ``base``: its search's base already solved (:func:`lead_base`)."""
     if problem.g0 is None and not adapt_prior and not judge:
         return Lead()
-    T = problem.n_frames
-    stretch = (min(T - 1, max(plan[0][1], CALIBRATION_FRAMES - 1)) // unit) * unit
-    wp = _window_problem(problem, 0, stretch, free_globals=True, g_held=None)
-    q0 = initial_trajectory(wp, start) if isinstance(start, str) else np.array(np.asarray(start, float)[: stretch + 1])
+    wp, stretch = _lead_problem(problem, window, overlap)
+    if base is not None:
+        start = functools.partial(hypotheses_start, base=base)
+    q0 = initial_trajectory(wp, start) if isinstance(start, str) or callable(start) else \
+        np.array(np.asarray(start, float)[: stretch + 1])
     lead = Lead(wp)
     if adapt_prior:  # the pose prior adapted to it, then held in every window
         wp = lead.problem = adapt_to_keyframes(wp, q0, wp.g0, keyframes=True)[0]
