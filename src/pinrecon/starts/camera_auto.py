@@ -518,7 +518,7 @@ def doubt_focal(auto: dict | None, unfamiliar_share: float, *, limit: float = 0.
     lo, hi = focal["interval_px"]
     keyed = str(auto.get("pose", "")).startswith("from the point keyframes")
     why = (f"the default pose prior did not know {100 * unfamiliar_share:.0f} % of the frames' poses (the clip was "
-           f"solved again with the broader {broader}, a fallback no surer of them)" if broader else
+           f"solved with the broader {broader}, a fallback no surer of them)" if broader else
            f"{100 * unfamiliar_share:.0f} % of the frames' poses are unlike its clips")
     msg = (f"the focal length is NOT determined: one view fixes it only through the pose prior, and {why}; "
            f"fitted {focal['focal_px']:.0f} px, which the MAP cost profile put at {lo:.0f}-{hi:.0f} px (95 %) taking the "
