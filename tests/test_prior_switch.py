@@ -210,12 +210,12 @@ def test_a_clip_in_windows_without_keyframes_is_judged_at_its_stretchs_base(rand
             mp.setattr(reconstruct_module, "forkable", lambda *a: True)
             if not early:
                 mp.setattr(reconstruct_module, "lead_base", lambda *a, **k: None)
-            mp.setattr(reconstruct_module, "solve_windowed", lambda problem, *a, **k: calls["windows"].append(
-                problem.weights.pose_prior_model) or real_windowed(problem, *a, **k))
-            mp.setattr(reconstruct_module, "solve_lead", lambda *a, **k: calls.update(leads=calls["leads"] + 1)
-                       or real_lead(*a, **k))
-            mp.setattr(reconstruct_module, "Beside", lambda *a, **k: calls.update(children=calls["children"] + 1)
-                       or real_beside(*a, **k))
+            mp.setattr(reconstruct_module, "solve_windowed", lambda problem, *a, calls=calls, **k: calls["windows"]
+                       .append(problem.weights.pose_prior_model) or real_windowed(problem, *a, **k))
+            mp.setattr(reconstruct_module, "solve_lead", lambda *a, calls=calls, **k: calls.update(
+                leads=calls["leads"] + 1) or real_lead(*a, **k))
+            mp.setattr(reconstruct_module, "Beside", lambda *a, calls=calls, **k: calls.update(
+                children=calls["children"] + 1) or real_beside(*a, **k))
             runs[early] = _solve(fig, tracks, cam, None, window=20), calls
     (late, late_calls), (res, calls) = runs[False], runs[True]
     assert late_calls == {"windows": ["human_pose_mixture"], "leads": 1, "children": 1}
@@ -258,9 +258,8 @@ def test_a_degenerate_focal_length_solves_again_with_the_broader_prior_and_the_l
     diagonals, 265 mm PA-MPJPE) on poses the default prior finds familiar. That focal length alone
     sends the clip down the broader route (the mixture prior, pinrecon's lifter), and the summary
     says why. By default the clip takes that route before any first solve: the search's base solve
-    already finds its poses unfamiliar (``pinrecon.stages.EARLY_SWITCH``), and the result is the
+    already finds its poses unfamiliar (``pinrecon.unfamiliar.EARLY_SWITCH``), and the result is the
     same to the last digit. Truth: the bundled motion's own keypoints."""
-    from pinrecon import stages
     from pinrecon.metrics import pa_mpjpe
     from pinrecon.synthetic import detector_faults
 
@@ -273,7 +272,7 @@ def test_a_degenerate_focal_length_solves_again_with_the_broader_prior_and_the_l
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         early = pr.reconstruct(pr.Figure.human(), tracks, "auto", image_size=size)
-        monkeypatch.setattr(stages, "EARLY_SWITCH", (0.0, np.inf))  # judged after the first solve, as before
+        monkeypatch.setattr(unfamiliar, "EARLY_SWITCH", (0.0, np.inf))  # judged after the first solve, as before
         res = pr.reconstruct(pr.Figure.human(), tracks, "auto", image_size=size)
     assert bool(early.extras["prior_switch_early"]) and "prior_switch_focal_px" not in early.extras
     assert str(early.extras["prior_model"]) == "human_pose_mixture"

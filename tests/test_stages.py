@@ -204,7 +204,7 @@ def test_the_switch_judged_at_the_search_base(share, short_walk, human):
     from pinrecon import stages as stages_module
 
     reconstruct_module = sys.modules["pinrecon.reconstruct"]
-    real_solve, real_beside = stages_module.solve, stages_module.Beside
+    real_solve, real_beside, real_judged = stages_module.solve, stages_module.Beside, stages_module.judged_at_base
 
     def run(early):
         calls, children = [], []
@@ -213,7 +213,7 @@ def test_the_switch_judged_at_the_search_base(share, short_walk, human):
             if share:
                 mp.setattr(reconstruct_module, "switch_share", lambda *a: -1.0)  # the first solve's judge switches too
             if early:
-                mp.setattr(stages_module, "unfamiliar_share", lambda extras: share)  # at the base
+                mp.setattr(stages_module, "judged_at_base", lambda problem: (real_judged(problem)[0], share))  # the base's
             else:
                 mp.setattr(stages_module, "_judged_base", lambda run: None)
             mp.setattr(stages_module, "solve", lambda *a, **k: calls.append(1) or real_solve(*a, **k))

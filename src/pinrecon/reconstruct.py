@@ -43,15 +43,7 @@ from .rows import Measurement2D
 from .rows.lifted import LiftedPose, disagreement_extras
 from .rows.posture import prior_for
 from .solver import SolveResult, SolverOptions, globals_of, solve
-from .stages import (
-    EARLY_SWITCH,
-    Run,
-    StageReport,
-    check_skip,
-    relabel_inputs,
-    run_stages,
-    with_lengths,
-)
+from .stages import Run, StageReport, check_skip, relabel_inputs, run_stages, with_lengths
 from .starts import available_starts, get_start, initial_trajectory, sparse_keyframes
 from .starts.camera_auto import (
     AutoCamera,
@@ -69,6 +61,7 @@ from .unfamiliar import (
     BROADER_PRIOR,
     SWITCH_SHARE,
     broader_prior,
+    early_verdict,
     switch_extras,
     switch_share,
     unfamiliar_poses,
@@ -375,7 +368,7 @@ def _result(run: Run, reports) -> Result:
         result.extras.update(switch_extras(*run.switch))
         if run.switch_focal is not None:
             result.extras["prior_switch_focal_px"] = np.float64(run.switch_focal)
-        if run.early is not None:  # judged at the start's base solve, before any first solve
+        if run.early:  # judged at the start's base solve, before any first solve
             result.extras["prior_switch_early"] = np.bool_(True)
     if run.conflict is not None:
         result.extras.update(run.conflict.to_extras())
@@ -404,21 +397,23 @@ def _reconstruct_windowed(problem, inputs, mode, calibrate, auto, start, init, s
         problem = with_lengths(inputs, mode, *found) if found else make_problem(**inputs, calibrate=mode)
     # the tracks' own lifted cues decide the limbs' reflections: no mirror stage (as pinrecon.stages)
     mirrors = not has_lifted(problem)
-    lead, switch, beside, early = None, None, None, None
+    lead, switch, beside, verdict = None, None, None, None
     try:
         if default is not None and not adapt:  # the prior judged on the leading stretch's poses, as its globals
-            # first at its search's base, as the stages' solve (EARLY_SWITCH): far beyond the share, no stretch solved
-            judged = lead_base(problem, start, window=span) if BROADER_PRIOR.get(default) else None
-            if judged is not None and judged[1] > EARLY_SWITCH[1] * limit:
-                early = switch = (BROADER_PRIOR[default], judged[1])
-            elif BROADER_PRIOR.get(default) and forkable() and (judged is None or judged[1] >= EARLY_SWITCH[0] * limit):
-                beside = Beside(_broader_lead, inputs, mode, found, BROADER_PRIOR[default], lift, start, options,
-                                span, fork=True)  # the broader prior's stretch meanwhile, in a child
-        if default is not None and not adapt and early is None:
-            lead = solve_lead(problem, start, options, callback, window=span, judge=True,
-                              base=None if judged is None else judged[0])
-            unfamiliar = unfamiliar_poses(lead.problem, lead.problem.figure.normalize(lead.x))
-            switch = broader_prior(default, "auto", {} if unfamiliar is None else unfamiliar.to_extras(), share=limit)
+            broader = BROADER_PRIOR.get(default)
+            # first at its search's base, as the stages' solve: far beyond the share, no stretch solved
+            judged = lead_base(problem, start, window=span) if broader else None
+            verdict = early_verdict(None if judged is None else judged[1], limit)
+            if verdict == "switch":
+                switch = (broader, judged[1])
+            else:
+                if broader and forkable() and verdict is None:  # the broader prior's stretch meanwhile, in a child
+                    beside = Beside(_broader_lead, inputs, mode, found, broader, lift, start, options, span, fork=True)
+                lead = solve_lead(problem, start, options, callback, window=span, judge=True,
+                                  base=None if judged is None else judged[0])
+                unfamiliar = unfamiliar_poses(lead.problem, lead.problem.figure.normalize(lead.x))
+                switch = broader_prior(default, "auto", {} if unfamiliar is None else unfamiliar.to_extras(),
+                                       share=limit)
         if switch is not None:
             inputs, problem = _switched(inputs, mode, found, switch[0], lift)
             lead = _taken_lead(beside, callback)  # the broader prior's own stretch (None: solved in the windows')
@@ -430,11 +425,11 @@ def _reconstruct_windowed(problem, inputs, mode, calibrate, auto, start, init, s
     result = _package(problem, res, auto, identify=False, judge=default if switch else None)
     if switch is not None:
         result.extras.update(switch_extras(*switch))
-        if early is not None:
+        if verdict == "switch":
             result.extras["prior_switch_early"] = np.bool_(True)
     changed = f"windows of {span} frames" + (
         f", pose prior -> {switch[0]} ({100 * switch[1]:.0f} % of the leading stretch's poses unfamiliar"
-        f"{' at its base solve' if early else ''})" if switch else "")
+        f"{' at its base solve' if verdict == 'switch' else ''})" if switch else "")
     result.stages = [StageReport("windowed", time.perf_counter() - t0, float(res.initial_cost), float(res.cost),
                                  changed)]
     return result

@@ -68,11 +68,18 @@ from .result import StageReport, spans_text
 from .solver import SolveResult, SolverOptions, solve
 from .starts import auto_start, initial_trajectory, searches
 from .starts.camera_auto import fitted_focal, implausible_focal, settle_focal
-from .starts.hypotheses import base_solve, hypotheses_start
+from .starts.hypotheses import hypotheses_start
 from .starts.lifted import has_lifted
 from .starts.mirrors import mirror_stage
 from .starts.turns import turn_stage
-from .unfamiliar import BROADER_PRIOR, broader_prior, unfamiliar_poses, unfamiliar_share
+from .unfamiliar import (
+    BROADER_PRIOR,
+    broader_prior,
+    early_verdict,
+    judged_at_base,
+    unfamiliar_poses,
+    unfamiliar_share,
+)
 
 #: the focal stage's solves with lifted cues: at most this many iterations each (bench_stages:
 #: the same PA-MPJPE and flips on the five clips, the stage 30 % shorter on Pose2Sim's trial)
@@ -87,15 +94,6 @@ FOCAL_ROUNDS_LIFTED = 1
 #: bench_lifted_real's Pose2Sim camera 3 went down such a profile to 3.1 diagonals (6876 px, the
 #: calibration's 1682) and 92.9 mm, 86.6 with the solve's own 2789 px kept
 FOCAL_PLAUSIBLE = (0.3, 1.5)
-#: the prior's switch judged at the multi-hypothesis search's base (the problem solved briefly
-#: from the rest pose, the search's first step): where more than this many times the switch's
-#: share of its poses are unfamiliar, the clip is solved with the broader prior at once (no
-#: first solve to judge); where less than ``EARLY_SWITCH[0]`` times, no switched solve is made
-#: beside the first in case it switches; between, both as before. Measured at the base and after
-#: the first solve (the switch's share 0.2; bench/README.md, bench_stages): Pose2Sim's four
-#: cameras 0.88-1.00 and 0.85-1.00, the spin 05_11 0.74 and 0.80, the dance 05_02 0.33 and 0.33,
-#: the walk and the run 0.00-0.09 and 0.00
-EARLY_SWITCH = (0.5, 2.0)
 
 __all__ = ["STAGES", "Run", "StageReport", "check_skip", "relabel_inputs", "relabel_spans", "run_stages"]
 
@@ -136,7 +134,7 @@ class Run:
     started: tuple | None = None  # the lifted start's (q0, problem): the prior's switch solves from it again
     spare_cpu: bool = False  # a child may solve beside this process (pinrecon.processes.forkable)
     judging: bool = False  # the prior stage runs (it judges the first solve's poses)
-    early: float | None = None  # the share of unfamiliar poses at the search's base that switched the prior at once
+    early: bool = False  # the prior switched at the search's base, before any first solve (EARLY_SWITCH)
     beside: Beside | None = None  # the prior's switched solve made beside the first solve
 
 
@@ -203,15 +201,11 @@ def _solve(run: Run) -> str:
         start = functools.partial(auto_start, lifted=False) if run.joined and auto else run.start
         what = "start and batch solve"
         base = _judged_base(run)
-        if base is not None and base[1] > EARLY_SWITCH[1] * run.switch_limit:
-            early = base[1]
-        else:
-            early = None
-            if run.started is None and not _lifted_start(run) and (base is None or base[1] >= EARLY_SWITCH[0] *
-                                                                   run.switch_limit):
-                _switch_beside(run)  # the switched solve starts afresh (pinrecon's lifter joins): from now on
-    if early is not None:
-        return _switch_early(run, early)
+        verdict = early_verdict(None if base is None else base[1], run.switch_limit)
+        if verdict is None and run.started is None and not _lifted_start(run):
+            _switch_beside(run)  # the switched solve starts afresh (pinrecon's lifter joins): from now on
+    if verdict == "switch":
+        return _switch_early(run, base[1])
     with warnings.catch_warnings(record=run.default_prior is not None) as more:
         if run.default_prior is not None:
             warnings.simplefilter("always")
@@ -237,25 +231,24 @@ def _solve(run: Run) -> str:
 
 
 def _judged_base(run: Run) -> tuple[np.ndarray, float] | None:
-    """``(base, share)``: the multi-hypothesis search's base (:func:`~.starts.hypotheses.
-    base_solve`) of the first solve, and the share of its poses the default prior does not know
-    (:data:`EARLY_SWITCH`); None where the prior stage judges no switch or the start is no search."""
+    """The first solve's search base and its share of poses the default prior does not know
+    (:func:`~pinrecon.unfamiliar.judged_at_base`); None where the prior stage judges no switch
+    or the start is no search."""
     broader = BROADER_PRIOR.get(run.default_prior) if run.default_prior is not None else None
     if broader is None or not run.judging or run.yield_at_start or run.started is not None or run.joined \
             or not (isinstance(run.start, str) and run.start == "auto") or not searches(run.problem):
         return None
-    base = base_solve(run.problem)
-    unfamiliar = unfamiliar_poses(run.problem, run.problem.figure.normalize(base))
-    return base, unfamiliar_share({} if unfamiliar is None else unfamiliar.to_extras())
+    return judged_at_base(run.problem)
 
 
 def _switch_early(run: Run, share: float) -> str:
-    """The prior's switch made before any first solve (:data:`EARLY_SWITCH`): the clip solved
-    with the broader prior (and pinrecon's lifter) from its start; the prior stage reports it."""
+    """The prior's switch made before any first solve (:data:`~pinrecon.unfamiliar.EARLY_SWITCH`):
+    the clip solved with the broader prior (and pinrecon's lifter) from its start; the prior
+    stage reports it."""
     default = run.default_prior
     name = BROADER_PRIOR[default]
     what = _switch_to(run, name)
-    run.switch, run.judge, run.early, run.caught = (name, share), default, share, []
+    run.switch, run.judge, run.early, run.caught = (name, share), default, True, []
     run.mirrors = run.mirrors or name in BROADER_PRIOR.values()
     return what
 
@@ -300,9 +293,9 @@ def _reissue(run: Run) -> None:
 
 
 def _prior(run: Run) -> str | None:
-    if run.early is not None:
-        return (f"pose prior {run.judge} -> {run.switch[0]} ({100 * run.early:.0f} % of the poses unfamiliar at the "
-                "start's base solve): solved with it from the start")
+    if run.early:
+        return (f"pose prior {run.judge} -> {run.switch[0]} ({100 * run.switch[1]:.0f} % of the poses "
+                "unfamiliar at the start's base solve): solved with it from the start")
     if run.default_prior is None:
         return None
     if run.conflict is not None and run.conflict.conflicting:  # adapted to the keyframes: they decide the poses

@@ -42,8 +42,9 @@ import numpy as np
 
 from .rows.posture import PosePrior, posture_row
 
-__all__ = ["BROADER_PRIOR", "SWITCH_SHARE", "SWITCH_SHARE_MONOCULAR", "UnfamiliarPoses", "broader_prior",
-           "switch_extras", "switch_share", "unfamiliar_poses", "unfamiliar_share"]
+__all__ = ["BROADER_PRIOR", "EARLY_SWITCH", "SWITCH_SHARE", "SWITCH_SHARE_MONOCULAR", "UnfamiliarPoses",
+           "broader_prior", "early_verdict", "judged_at_base", "switch_extras", "switch_share", "unfamiliar_poses",
+           "unfamiliar_share"]
 
 #: the broader prior a clip is solved again with when its default prior does not know most of
 #: its poses: the generic human's single Gaussian (walking, running, jumping, basketball; sharp
@@ -59,6 +60,15 @@ SWITCH_SHARE = 0.5
 #: without keyframes; with first and last keyframes it is further in five of six, so the half stays. The walk and the run (0 %)
 #: are untouched; the prior's own clips lie beyond its 99th percentile in 1 % of their frames.
 SWITCH_SHARE_MONOCULAR = 0.2
+#: the prior's switch judged at the multi-hypothesis search's base (the problem solved briefly
+#: from the rest pose, the search's first step; :func:`early_verdict`): where more than this many
+#: times the switch's share of its poses are unfamiliar, the clip is solved with the broader prior
+#: at once (no first solve to judge); where less than ``EARLY_SWITCH[0]`` times, no switched solve
+#: is made beside the first in case it switches; between, both as before. Measured at the base and
+#: after the first solve (the switch's share 0.2; bench/README.md, bench_stages): Pose2Sim's four
+#: cameras 0.88-1.00 and 0.85-1.00, the spin 05_11 0.74 and 0.80, the dance 05_02 0.33 and 0.33,
+#: the walk and the run 0.00-0.09 and 0.00
+EARLY_SWITCH = (0.5, 2.0)
 
 
 @dataclass
@@ -143,6 +153,29 @@ def unfamiliar_share(extras: dict) -> float:
     :meth:`UnfamiliarPoses.to_extras`; 0 without the check)."""
     d = np.asarray(extras.get("prior_distance", ()), float)
     return float(np.mean(d > float(extras["prior_distance_limit"]))) if len(d) else 0.0
+
+
+def judged_at_base(problem) -> tuple[np.ndarray, float]:
+    """``(base, share)``: the multi-hypothesis search's base of ``problem``
+    (:func:`pinrecon.starts.hypotheses.base_solve`, which its search takes as ``base``) and the
+    share of the base's poses ``problem``'s pose prior does not know."""
+    from .starts.hypotheses import base_solve
+
+    base = base_solve(problem)
+    unfamiliar = unfamiliar_poses(problem, problem.figure.normalize(base))
+    return base, unfamiliar_share({} if unfamiliar is None else unfamiliar.to_extras())
+
+
+def early_verdict(share: float | None, limit: float) -> str | None:
+    """What ``share``, the unfamiliar poses at the search's base (:func:`judged_at_base`), decides
+    of a switch at ``limit`` (:data:`EARLY_SWITCH`): ``"switch"`` (to the broader prior at once),
+    ``"keep"`` (no switched solve made beside the first in case), or None (judged after the first
+    solve, as without a share)."""
+    if share is None:
+        return None
+    if share > EARLY_SWITCH[1] * limit:
+        return "switch"
+    return "keep" if share < EARLY_SWITCH[0] * limit else None
 
 
 def switch_extras(name: str, share: float) -> dict:

@@ -71,11 +71,11 @@ from .problem import make_problem
 from .processes import may_fork, n_processes, usable_cpus
 from .solver import SolveResult, SolverOptions, costs_at, solve
 from .starts import initial_trajectory, searches
-from .starts.hypotheses import base_solve, hypotheses_start
+from .starts.hypotheses import hypotheses_start
 from .starts.mirrors import MirrorStage, mirror_stage
 from .starts.turns import TurnStage, turn_stage
 from .tracks import Keyframes
-from .unfamiliar import unfamiliar_poses, unfamiliar_share
+from .unfamiliar import judged_at_base
 
 __all__ = [
     "AUTO_WINDOW_FRAMES",
@@ -180,18 +180,13 @@ def _lead_problem(problem, window: int, overlap: int | None):
 
 def lead_base(problem, start="auto", *, window: int = DEFAULT_WINDOW, overlap: int | None = None):
     """``(base, share)``: the leading stretch's multi-hypothesis search base
-    (:func:`pinrecon.starts.hypotheses.base_solve`), which :func:`solve_lead` takes as ``base``,
     and the share of its poses the problem's pose prior does not know
-    (:func:`pinrecon.unfamiliar.unfamiliar_poses`); None where ``start`` (``"auto"`` only)
-    starts the stretch otherwise (lifted cues, several cameras, dense keyframes)."""
+    (:func:`pinrecon.unfamiliar.judged_at_base`; :func:`solve_lead` takes the base); None where
+    ``start`` (``"auto"`` only) starts the stretch otherwise (lifted cues, several cameras, dense keyframes)."""
     if not (isinstance(start, str) and start == "auto"):
         return None
     wp, _ = _lead_problem(problem, window, overlap)
-    if not searches(wp):
-        return None
-    base = base_solve(wp)
-    unfamiliar = unfamiliar_poses(wp, wp.figure.normalize(base))
-    return base, unfamiliar_share({} if unfamiliar is None else unfamiliar.to_extras())
+    return judged_at_base(wp) if searches(wp) else None
 
 
 def solve_lead(problem, start="auto", options: SolverOptions | None = None, callback=None, *,

@@ -372,9 +372,9 @@ class _Trials:
 
     def tried(self, cur, seen, cand, nxt, callback, kept_below: float):
         """``[(candidate, (solve, turned))]``: ``cand`` tried on the solution ``cur``; unless
-        its cost falls below ``kept_below`` (it is kept), and where ``nxt`` is given, ``nxt`` too, tried meanwhile in a forked
-        child (its iterations reported to ``callback`` once taken; where the callback stops
-        them, tried again here, where it is heard)."""
+        its cost falls below ``kept_below`` (it is kept), and where ``nxt`` is given, ``nxt``
+        too, tried meanwhile in a forked child (its iterations reported to ``callback`` once
+        taken; where the callback stops them, tried again here, where it is heard)."""
         side = None if nxt is None else Beside(self.trial, cur, seen, nxt, None, fork=True)
         try:
             first = self.trial(cur, seen, cand, callback)
