@@ -116,6 +116,26 @@ def test_termination_reasons(problem):
     assert stopped.status == "stopped by callback" and stopped.iterations == 3
 
 
+def test_stop_when_sees_each_accepted_iterate_and_stops_with_its_word(problem):
+    """``stop_when(iteration, x)`` sees the trajectory after each accepted step (the one a solve
+    limited to that many iterations ends at) and stops the solve with the status it returns."""
+    _fig, prob, Qx, _ = problem
+    seen = {}
+
+    def stop_when(iteration, x):
+        seen[iteration] = x.copy()
+        return "enough" if iteration == 3 else None
+
+    res = solve(prob, Qx, SolverOptions(max_iterations=50), stop_when=stop_when)
+    assert res.status == "enough" and res.iterations == 3 and not res.converged
+    accepted = [r.iteration for r in res.report if r.accepted]
+    assert sorted(seen) == accepted and accepted[-1] == 3
+    three = solve(prob, Qx, SolverOptions(max_iterations=3))
+    np.testing.assert_array_equal(res.x, three.x)
+    np.testing.assert_array_equal(seen[3], three.x)
+    assert res.cost == three.cost
+
+
 def test_a_start_with_non_finite_residuals_is_refused(problem):
     fig, prob, Qx, _ = problem
     bad = Qx.copy()

@@ -239,6 +239,56 @@ def test_the_switch_judged_at_the_search_base(share, short_walk, human):
             np.testing.assert_array_equal(res.extras[key], value, err_msg=key)
 
 
+@pytest.mark.parametrize("switch", [True, False])
+def test_the_switch_judged_while_the_first_solve_runs(switch, cued_walk, human):
+    """From ``JUDGED_FROM_ITERATION`` on, the first solve's poses are judged after each step
+    (``EARLY_SWITCH``'s multiples). Far beyond the switch's share (forced here: a share of -1)
+    the first solve stops there and the clip switches: the result of the solve run to the end and
+    judged then, to the last digit. Far under it (the walk's poses, all familiar) the switched
+    solve made beside is dropped while the first one runs, not at the prior stage, and the
+    result is the same. Ground truth: the same call with the judging moved past any iteration."""
+    from pinrecon import stages as stages_module
+
+    reconstruct_module = sys.modules["pinrecon.reconstruct"]
+    real_beside = stages_module.Beside
+
+    def run(judged_from):
+        dropped, stage = [], []
+
+        def beside(*a, **k):
+            child = real_beside(*a, **k)
+            cancel = child.cancel
+            child.cancel = lambda: dropped.append(stage[-1]) or cancel()
+            return child
+
+        with pytest.MonkeyPatch.context() as mp:
+            mp.setattr(stages_module, "forkable", lambda *a: True)
+            mp.setattr(stages_module, "JUDGED_FROM_ITERATION", judged_from)
+            mp.setattr(stages_module, "Beside", beside)
+            if switch:
+                mp.setattr(reconstruct_module, "switch_share", lambda *a: -1.0)
+            return _solve(cued_walk, human, progress=stage.append), dropped
+
+    (late, dropped_late), (res, dropped) = run(10**9), run(6)
+    np.testing.assert_array_equal(res.q, late.q)
+    assert res.solve.cost == late.solve.cost
+    for key, value in late.extras.items():
+        if key not in ("run_time_s", "prior_default_unfamiliar"):
+            np.testing.assert_array_equal(res.extras[key], value, err_msg=key)
+    first, first_late = ({s.name: s.changed for s in r.stages}["solve"] for r in (res, late))
+    late_iterations = int(first_late.split(": ")[-1].split()[0])
+    assert late_iterations > 6  # the judging stops it earlier
+    if switch:
+        assert first.endswith(": 6 iterations, stopped: 0 % of the poses unfamiliar (the prior's switch)")
+        assert int(res.extras["prior_switch_iteration"]) == 6 and "prior_switch_iteration" not in late.extras
+        assert str(res.extras["prior_model"]) == "human_pose_mixture" == str(late.extras["prior_model"])
+        assert "0 % of the frames' poses 6 iterations into the first solve: solved again" in res.summary()
+        assert dropped == dropped_late == []  # the switched solve made beside is taken
+    else:
+        assert first == first_late and "prior_model" not in res.extras
+        assert dropped_late == ["prior"] and dropped == ["solve"]
+
+
 def test_a_callback_that_stops_the_switched_solve_is_obeyed_beside(cued_walk, human, monkeypatch):
     """A callback that stops the switched solve at its first iteration: the solve made beside
     is not taken (it ran to the end), the stage solves it here and stops where the callback

@@ -370,6 +370,8 @@ def _result(run: Run, reports) -> Result:
             result.extras["prior_switch_focal_px"] = np.float64(run.switch_focal)
         if run.early:  # judged at the start's base solve, before any first solve
             result.extras["prior_switch_early"] = np.bool_(True)
+        elif run.judged is not None:  # judged while the first solve ran, which stopped there
+            result.extras["prior_switch_iteration"] = np.int64(run.judged[1])
     if run.conflict is not None:
         result.extras.update(run.conflict.to_extras())
     result.extras.update(run.relabelled)

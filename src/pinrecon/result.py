@@ -245,11 +245,13 @@ class Result:
                          "solved again with this broader prior and the lifter's cues, as for unfamiliar poses)")
         elif "prior_default_unfamiliar" in x:
             early = bool(x.get("prior_switch_early", False))
+            at = int(x.get("prior_switch_iteration", 0))
+            when = ("at the start's brief solve: solved with this broader one from the start" if early else
+                    f"{at} iterations into the first solve: solved again with this broader one" if at else
+                    "as first solved: solved again with this broader one")
             lines.append(f"pose prior: {x['prior_model']!s} (the default did not know "
-                         f"{100 * float(x['prior_default_unfamiliar']):.0f} % of the frames' poses "
-                         + ("at the start's brief solve: solved with this broader one from the start"
-                            if early else "as first solved: solved again with this broader one")
-                         + "; pinrecon.unfamiliar.broader_prior)")
+                         f"{100 * float(x['prior_default_unfamiliar']):.0f} % of the frames' poses {when}"
+                         "; pinrecon.unfamiliar.broader_prior)")
         conflict = [str(j) for j in x.get("prior_conflict_joints", ())]
         if conflict:
             lines.append(f"the data disagree with the pose prior on {len(conflict)} joint(s) ({', '.join(conflict)}): "

@@ -231,7 +231,8 @@ def _flatten(blocks):
     return out
 
 
-def solve(problem, x0, options=None, callback=None, active=None, g0=None, active_globals=None) -> SolveResult:
+def solve(problem, x0, options=None, callback=None, active=None, g0=None, active_globals=None, *,
+          stop_when=None) -> SolveResult:
     """Minimise ``0.5 sum |r|^2`` over the trajectory starting from ``x0``.
 
     Parameters
@@ -245,12 +246,15 @@ def solve(problem, x0, options=None, callback=None, active=None, g0=None, active
         as ``problem.evaluate(x, jacobian, g)`` and the result's ``g`` is their solution;
         omitted (``None``), the solve is exactly the motion-only one.
     active_globals : optional (n_g,) bool, globals that may move (others stay fixed).
+    stop_when : optional ``stop_when(iteration, x)``, called after each accepted step with the
+        new (T, nq) trajectory; a string returned stops the solve, with that string as its
+        ``status`` (``converged`` False).
     """
     opt = options or SolverOptions()
     if opt.blas_threads is None:
-        return _solve(problem, x0, opt, callback, active, g0, active_globals)
+        return _solve(problem, x0, opt, callback, active, g0, active_globals, stop_when)
     with _blas_controller().limit(limits=opt.blas_threads, user_api="blas"):
-        return _solve(problem, x0, opt, callback, active, g0, active_globals)
+        return _solve(problem, x0, opt, callback, active, g0, active_globals, stop_when)
 
 
 _CONTROLLER: list = []
@@ -274,6 +278,7 @@ def _solve(
     active: np.ndarray | None = None,
     g0: np.ndarray | None = None,
     active_globals: np.ndarray | None = None,
+    stop_when: Callable[[int, np.ndarray], str | None] | None = None,
 ) -> SolveResult:
     opt = options
     t_start = time.perf_counter()
@@ -453,6 +458,11 @@ def _solve(
         if stop is not None:
             status, converged = stop, True
             break
+        if stop_when is not None and rep.accepted:
+            said = stop_when(it, x)
+            if said:
+                status = str(said)
+                break
         if not rep.accepted and lam > opt.max_damping:
             status = "no_progress"
             break

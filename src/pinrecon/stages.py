@@ -74,9 +74,11 @@ from .starts.mirrors import mirror_stage
 from .starts.turns import turn_stage
 from .unfamiliar import (
     BROADER_PRIOR,
+    JUDGED_FROM_ITERATION,
     broader_prior,
     early_verdict,
     judged_at_base,
+    judged_share,
     unfamiliar_poses,
     unfamiliar_share,
 )
@@ -135,6 +137,7 @@ class Run:
     spare_cpu: bool = False  # a child may solve beside this process (pinrecon.processes.forkable)
     judging: bool = False  # the prior stage runs (it judges the first solve's poses)
     early: bool = False  # the prior switched at the search's base, before any first solve (EARLY_SWITCH)
+    judged: tuple | None = None  # (share, iteration): the first solve stopped where its poses decided the switch
     beside: Beside | None = None  # the prior's switched solve made beside the first solve
 
 
@@ -225,7 +228,8 @@ def _solve(run: Run) -> str:
             run.problem, run.conflict = adapt_prior(run.problem, q0, run.problem.g0, keyframes=True)
             if run.conflict is not None and run.conflict.conflicting:
                 what += f", pose prior adapted to the keyframes on {len(run.conflict.conflicting)} joint(s)"
-        run.res = solve(run.problem, q0, run.options, run.callback, active=run.problem.active, g0=run.problem.g0)
+        run.res = solve(run.problem, q0, run.options, run.callback, active=run.problem.active, g0=run.problem.g0,
+                        stop_when=_judge_while(run))
     run.caught = list(caught or []) + list(more or [])
     return f"{what}: {run.res.iterations} iterations, {run.res.status}"
 
@@ -239,6 +243,34 @@ def _judged_base(run: Run) -> tuple[np.ndarray, float] | None:
             or not (isinstance(run.start, str) and run.start == "auto") or not searches(run.problem):
         return None
     return judged_at_base(run.problem)
+
+
+def _judge_while(run: Run) -> Callable | None:
+    """The first solve's ``stop_when`` where the prior stage judges it: from iteration
+    :data:`~pinrecon.unfamiliar.JUDGED_FROM_ITERATION` on, the share of its poses the default prior
+    does not know, by :func:`~pinrecon.unfamiliar.early_verdict`. Far beyond the switch's share
+    the solve stops there (``run.judged``; the switched solve does not depend on it); far under
+    it the switched solve made beside is dropped (the converged solve is judged as before)."""
+    if not run.judging or run.early or run.yield_at_start or run.default_prior not in BROADER_PRIOR:
+        return None
+    kept = []
+
+    def stop_when(iteration: int, x: np.ndarray) -> str | None:
+        if iteration < JUDGED_FROM_ITERATION or kept:
+            return None
+        share = judged_share(run.problem, x)
+        verdict = early_verdict(share, run.switch_limit)
+        if verdict == "switch":
+            run.judged = (share, iteration)
+            return f"stopped: {100 * share:.0f} % of the poses unfamiliar (the prior's switch)"
+        if verdict == "keep":
+            kept.append(iteration)
+            if run.beside is not None:
+                run.beside.cancel()
+                run.beside = None
+        return None
+
+    return stop_when
 
 
 def _switch_early(run: Run, share: float) -> str:
@@ -301,10 +333,13 @@ def _prior(run: Run) -> str | None:
     if run.conflict is not None and run.conflict.conflicting:  # adapted to the keyframes: they decide the poses
         _reissue(run)
         return None
-    unfamiliar = unfamiliar_poses(run.problem, run.problem.figure.normalize(run.res.x))
-    extras = {} if unfamiliar is None else unfamiliar.to_extras()
-    switch = broader_prior(run.default_prior, "auto", extras, share=run.switch_limit)
-    focal = _degenerate_focal(run) if switch is None and run.default_prior in BROADER_PRIOR else None
+    if run.judged is not None:  # the first solve stopped where its poses decided (_judge_while)
+        switch, focal = (BROADER_PRIOR[run.default_prior], run.judged[0]), None
+    else:
+        unfamiliar = unfamiliar_poses(run.problem, run.problem.figure.normalize(run.res.x))
+        extras = {} if unfamiliar is None else unfamiliar.to_extras()
+        switch = broader_prior(run.default_prior, "auto", extras, share=run.switch_limit)
+        focal = _degenerate_focal(run) if switch is None and run.default_prior in BROADER_PRIOR else None
     if focal is not None:  # a degenerate first solve: the broader route (and the lifter's cues) from the start
         switch, run.switch_focal = (BROADER_PRIOR[run.default_prior], unfamiliar_share(extras)), focal
     beside, run.beside = run.beside, None
@@ -319,7 +354,8 @@ def _prior(run: Run) -> str | None:
     run.switch, run.judge = switch, default
     run.mirrors = run.mirrors or run.problem.weights.pose_prior_model in BROADER_PRIOR.values()
     why = f"the auto camera's focal length at {focal:.0f} px, implausible" if focal is not None else \
-        f"{100 * switch[1]:.0f} % of the poses unfamiliar"
+        f"{100 * switch[1]:.0f} % of the poses unfamiliar" + (
+            f" {run.judged[1]} iterations into the first solve" if run.judged is not None else "")
     return f"pose prior {default} -> {switch[0]} ({why}), solved again"
 
 

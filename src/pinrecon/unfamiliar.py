@@ -42,9 +42,9 @@ import numpy as np
 
 from .rows.posture import PosePrior, posture_row
 
-__all__ = ["BROADER_PRIOR", "EARLY_SWITCH", "SWITCH_SHARE", "SWITCH_SHARE_MONOCULAR", "UnfamiliarPoses",
-           "broader_prior", "early_verdict", "judged_at_base", "switch_extras", "switch_share", "unfamiliar_poses",
-           "unfamiliar_share"]
+__all__ = ["BROADER_PRIOR", "EARLY_SWITCH", "JUDGED_FROM_ITERATION", "SWITCH_SHARE", "SWITCH_SHARE_MONOCULAR",
+           "UnfamiliarPoses", "broader_prior", "early_verdict", "judged_at_base", "judged_share", "switch_extras",
+           "switch_share", "unfamiliar_poses", "unfamiliar_share"]
 
 #: the broader prior a clip is solved again with when its default prior does not know most of
 #: its poses: the generic human's single Gaussian (walking, running, jumping, basketball; sharp
@@ -69,6 +69,15 @@ SWITCH_SHARE_MONOCULAR = 0.2
 #: cameras 0.88-1.00 and 0.85-1.00, the spin 05_11 0.74 and 0.80, the dance 05_02 0.33 and 0.33,
 #: the walk and the run 0.00-0.09 and 0.00
 EARLY_SWITCH = (0.5, 2.0)
+#: the same verdict judged while the first solve runs (:func:`judged_share`, from this iteration on,
+#: after each accepted step): "switch" stops that solve (the switched one does not depend on it),
+#: "keep" drops the switched solve made beside it. Measured on bench_stages' clips with lifted cues
+#: (the first solve's share at iterations 2 / 4 / 6 / 8 / 12 -> converged): Pose2Sim's four cameras
+#: with MediaPipe's 3D 0.76 / 0.87 / 1.00 / 1.00 / 1.00 -> 1.00, 0.52 / 0.92 / 0.93 / 0.92 / 0.90 ->
+#: 0.88, 0.47 / 0.60 / 0.58 / 0.62 / 0.74 -> 0.76, 0.22 / 0.61 / 0.69 / 0.82 / 0.86 -> 0.89; the spin
+#: 0.00 / 0.64 / 0.94 / 0.98 / 0.98 -> 0.99; the dance 05_02 0.00 / 0.23 / 0.35 / 0.37 / 0.37 -> 0.36;
+#: the walk and the run 0.00 throughout
+JUDGED_FROM_ITERATION = 6
 
 
 @dataclass
@@ -155,15 +164,21 @@ def unfamiliar_share(extras: dict) -> float:
     return float(np.mean(d > float(extras["prior_distance_limit"]))) if len(d) else 0.0
 
 
+def judged_share(problem, Q) -> float:
+    """The share of trajectory ``Q``'s poses ``problem``'s pose prior does not know (0 without
+    a learned prior)."""
+    unfamiliar = unfamiliar_poses(problem, problem.figure.normalize(Q))
+    return unfamiliar_share({} if unfamiliar is None else unfamiliar.to_extras())
+
+
 def judged_at_base(problem) -> tuple[np.ndarray, float]:
     """``(base, share)``: the multi-hypothesis search's base of ``problem``
     (:func:`pinrecon.starts.hypotheses.base_solve`, which its search takes as ``base``) and the
-    share of the base's poses ``problem``'s pose prior does not know."""
+    share of the base's poses ``problem``'s pose prior does not know (:func:`judged_share`)."""
     from .starts.hypotheses import base_solve
 
     base = base_solve(problem)
-    unfamiliar = unfamiliar_poses(problem, problem.figure.normalize(base))
-    return base, unfamiliar_share({} if unfamiliar is None else unfamiliar.to_extras())
+    return base, judged_share(problem, base)
 
 
 def early_verdict(share: float | None, limit: float) -> str | None:
