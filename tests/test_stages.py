@@ -289,6 +289,32 @@ def test_the_switch_judged_while_the_first_solve_runs(switch, cued_walk, human):
         assert dropped_late == ["prior"] and dropped == ["solve"]
 
 
+def test_each_warning_is_said_once_though_the_stages_make_the_problem_again(cued_walk, human, monkeypatch):
+    """The stages make the problem again (the lengths measured from the tracks, the prior's switch):
+    its note on points the figure does not carry is said once, not once per problem. Ground
+    truth: the problem made three times or more in the call, each time saying it."""
+    import warnings
+
+    from pinrecon import problem as problem_module
+
+    reconstruct_module = sys.modules["pinrecon.reconstruct"]
+    monkeypatch.setattr(reconstruct_module, "switch_share", lambda *a: -1.0)  # the prior switches: made again
+    tracks, _ = cued_walk
+    extra = np.concatenate([tracks.points, tracks.points[:, :1] + 5.0], axis=1)
+    odd = pr.Tracks(extra, [*tracks.names, "left_pinky_tip"], tracks.fps, lifted=tracks.lifted)
+    made = []
+    real_check = problem_module.warnings.warn
+    monkeypatch.setattr(problem_module.warnings, "warn", lambda msg, *a, **k: made.append(str(msg)) or real_check(
+        msg, *a, **k))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        res = pr.reconstruct(human, odd, "auto", image_size=(1280, 720))
+    notes = [str(w.message) for w in caught if "points not on the figure" in str(w.message)]
+    assert str(res.extras["prior_model"]) == "human_pose_mixture"
+    assert sum("points not on the figure" in m for m in made) >= 3
+    assert notes == [made[0]] and "left_pinky_tip" in notes[0]
+
+
 def test_a_callback_that_stops_the_switched_solve_is_obeyed_beside(cued_walk, human, monkeypatch):
     """A callback that stops the switched solve at its first iteration: the solve made beside
     is not taken (it ran to the end), the stage solves it here and stops where the callback

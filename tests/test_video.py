@@ -170,6 +170,25 @@ def test_video_command_writes_result_exports_and_overlay(video_run):
 
 
 
+def test_video_progress_names_each_stage(cut, tracked, tmp_path, capsys):
+    """Without --quiet the command says each stage of the reconstruction as it starts, and labels
+    the solver's iterations with it (as ``pinrecon reconstruct``)."""
+    from pinrecon.cli import build_parser
+    from pinrecon.commands.video import run_video
+    from pinrecon.stages import STAGES
+
+    args = build_parser().parse_args(["video", str(cut), "--out", str(tmp_path / "out"), "--no-plots",
+                                      "--no-overlay"])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        run_video(args, tracked=[tracked])
+    err = capsys.readouterr().err.splitlines()
+    said = [line.split()[2] for line in err if line.startswith("pinrecon: stage ")]
+    assert said == list(STAGES)
+    solve_lines = [line for line in err if line.startswith("solve: iter ")]
+    assert solve_lines and all("/100  cost " in line for line in solve_lines)
+
+
 @pytest.mark.parametrize("how", ["another process", "here: no interpreter", "here: the process failed"])
 def test_plots_are_drawn_beside_the_overlay_or_here(cut, tracked, tmp_path, monkeypatch, how):
     """The plots come from ``pinrecon plot`` in another process while the overlay is written;

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import sys
-import time
 import warnings
 
 from .arguments import (
@@ -16,6 +15,7 @@ from .arguments import (
     reconstruct_from_args,
     weights_kwargs,
 )
+from .commands import SolveProgress
 from .errors import PinreconError
 
 __all__ = ["main"]
@@ -30,62 +30,9 @@ def _show_warning(message, category, filename, lineno, file=None, line=None):
     print(f"pinrecon: warning: {message}", file=sys.stderr)
 
 
-class _Progress:
-    """Solver progress on stderr: a live line on a terminal, one line per 10 iterations
-    (and every rejected step) when stderr is a file or a pipe."""
-
-    def __init__(self, quiet: bool, max_iterations: int):
-        self.quiet = quiet
-        self.max = max_iterations
-        self.t0 = time.perf_counter()
-        self.tty = sys.stderr.isatty()
-        self.dirty = False
-        self.label = ""
-
-    def stage(self, name: str):
-        """A stage of :func:`pinrecon.reconstruct` starts (:mod:`pinrecon.stages`): one labelled line."""
-        if self.quiet:
-            return
-        self.close()
-        print(f"pinrecon: stage {name} ({time.perf_counter() - self.t0:.1f}s)", file=sys.stderr, flush=True)
-        self.label = f"{name}: "
-
-    def __call__(self, rep):
-        if self.quiet:
-            return None
-        line = (
-            f"{self.label}iter {rep.iteration:3d}/{self.max}  cost {rep.cost:.6g}  |dx| {rep.step_norm:.2g}  "
-            f"{time.perf_counter() - self.t0:5.1f}s"
-        )
-        if not rep.accepted:
-            line += f"  (rejected: {rep.message})"
-        if self.tty:
-            print("\r" + line.ljust(78), end="", file=sys.stderr, flush=True)
-            self.dirty = True
-        elif not rep.accepted or rep.iteration % 10 == 0 or rep.iteration == 1:
-            print(line, file=sys.stderr, flush=True)
-        return None
-
-    def window(self, rep):
-        """One solved window of a long clip (:class:`pinrecon.windowed.WindowReport`), with
-        the time left at the pace so far."""
-        if self.quiet:
-            return
-        elapsed = time.perf_counter() - self.t0
-        left = elapsed / rep.index * (rep.count - rep.index)
-        print(("\r" if self.tty else "") + f"{rep}  (elapsed {elapsed:.0f}s, about {left:.0f}s left)".ljust(78),
-              file=sys.stderr, flush=True)
-        self.dirty = False
-
-    def close(self):
-        if not self.quiet and self.dirty:
-            print(file=sys.stderr)
-            self.dirty = False
-
-
 def cmd_reconstruct(args) -> int:
     outs = _outputs(args)
-    progress = _Progress(args.quiet, args.max_iterations)
+    progress = SolveProgress(args.quiet, args.max_iterations)
     res = reconstruct_from_args(args, callback=progress)
     progress.close()
     return _save_and_report(res, args, outs)
@@ -142,7 +89,7 @@ def cmd_fit_markers(args) -> int:
         markers = Markers(markers.points[:, keep], [markers.names[i] for i in keep], markers.fps, markers.source)
     fig = figure_from_args(args, [markers])  # 'human': the bundled map carrying most of the markers' names
     kf = load_keyframes(args.keyframes) if args.keyframes else None
-    progress = _Progress(args.quiet, args.max_iterations)
+    progress = SolveProgress(args.quiet, args.max_iterations)
     res = reconstruct_markers(fig, markers, kf, fps_out=args.fps_out, weights=Weights(sigma_markers_m=args.sigma_m),
                               options=SolverOptions(max_iterations=args.max_iterations), callback=progress,
                               calibrate=args.calibrate)
@@ -178,7 +125,7 @@ def cmd_demo(args) -> int:
     if not args.quiet:
         print(f"pinrecon demo: data from {source()}", file=sys.stderr)
     clip("walk")  # fetched (with a progress bar) before the work, or one clear error
-    progress = _Progress(args.quiet, 100)
+    progress = SolveProgress(args.quiet, 100)
     if not args.quiet:
         print(f"pinrecon demo: reconstructing the bundled CMU walk into {args.out}/ (the lab setting, then your "
               "video: detector output, the generic human, no keyframes)", file=sys.stderr)

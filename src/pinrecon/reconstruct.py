@@ -247,12 +247,24 @@ def build_problem(
 
 def _timed(fn):
     """Record the whole call's wall time in the result (``extras["run_time_s"]``), which the
-    summary reports (the solver's own time is that of its last solve only)."""
+    summary reports (the solver's own time is that of its last solve only); and say each
+    warning of the call once: its stages make the problem again (the lengths measured, the
+    prior's switch), which would repeat its notes (points not on the figure, ...). The caller's
+    filters and ``warnings.showwarning`` apply as before."""
 
     @functools.wraps(fn)
     def run(*args, **kwargs):
         t0 = time.perf_counter()
-        result = fn(*args, **kwargs)
+        with warnings.catch_warnings():  # restores the caller's showwarning
+            said, show = set(), warnings.showwarning
+
+            def once(message, category, filename, lineno, file=None, line=None):
+                if (category, str(message)) not in said:
+                    said.add((category, str(message)))
+                    show(message, category, filename, lineno, file, line)
+
+            warnings.showwarning = once
+            result = fn(*args, **kwargs)
         result.extras["run_time_s"] = np.float64(time.perf_counter() - t0)
         return result
 

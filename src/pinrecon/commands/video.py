@@ -22,21 +22,10 @@ import warnings
 from pathlib import Path
 
 from ..errors import InputError
+from . import SolveProgress
 from .track import FPS_HELP, NOBODY, add_video_options, check_video_options, check_writable
 
 __all__ = ["cmd_video", "register", "run_video"]
-
-
-class _SolveLine:
-    """The solver's progress on stderr, one line per 10 iterations."""
-
-    def __init__(self, quiet: bool):
-        self.quiet, self.t0 = quiet, time.perf_counter()
-
-    def __call__(self, rep):
-        if not self.quiet and (rep.iteration == 1 or rep.iteration % 10 == 0):
-            print(f"solve: iteration {rep.iteration:3d}  cost {rep.cost:.6g}  {time.perf_counter() - self.t0:5.1f}s",
-                  file=sys.stderr, flush=True)
 
 
 def _outputs(out: Path, videos: list[str]) -> dict:
@@ -252,7 +241,9 @@ def _run(args, infos, files, stages, t_start, plots, auto, tracked) -> dict:
         # every run
         off_map = f"tracks points not on the figure are ignored: {list(MEDIAPIPE_OFF_MAP)}"
         warnings.filterwarnings("ignore", message=re.escape(off_map) + "$")
-        res = reconstruct_from_args(args, callback=_SolveLine(args.quiet))
+        progress = SolveProgress(args.quiet, args.max_iterations)
+        res = reconstruct_from_args(args, callback=progress)
+        progress.close()
     res.save(files["result"])
     written = [files["tracks"], [files["result"]]]
     stages["reconstruct"] = time.perf_counter() - t0
