@@ -229,6 +229,39 @@ def test_a_clip_in_windows_without_keyframes_is_judged_at_its_stretchs_base(rand
             np.testing.assert_array_equal(res.extras[key], value, err_msg=key)
 
 
+def test_a_clip_in_windows_is_judged_while_its_leading_stretch_is_solved(random_motion):
+    """Where the stretch's search base does not decide (here: not judged there), the prior is
+    judged while the stretch is solved (``pinrecon.unfamiliar.JudgedWhile``, from its 2nd iteration
+    here: this stretch converges in 5): once these random poses are far beyond the switch's share
+    that solve stops, the clip switches, and the windows are solved once with the broader prior,
+    to the last digit as when judged after the stretch's solve. Ground truth: the same call with the judging moved past any
+    iteration."""
+    import sys
+
+    reconstruct_module = sys.modules["pinrecon.reconstruct"]
+    fig, tracks, cam, _ = random_motion
+    real_solve = sys.modules["pinrecon.windowed"].solve
+    runs = {}
+    for judged_from in (10**9, 2):
+        lead_iterations = []
+        with pytest.MonkeyPatch.context() as mp:
+            mp.setattr(reconstruct_module, "lead_base", lambda *a, **k: None)
+            mp.setattr(unfamiliar, "JUDGED_FROM_ITERATION", judged_from)
+            mp.setattr(sys.modules["pinrecon.windowed"], "solve", lambda *a, its=lead_iterations, **k: its.append(
+                real_solve(*a, **k)) or its[-1])
+            runs[judged_from] = _solve(fig, tracks, cam, None, window=20), [r.iterations for r in lead_iterations]
+    (late, late_leads), (res, leads) = runs[10**9], runs[2]
+    np.testing.assert_array_equal(res.q, late.q)
+    assert str(res.extras["prior_model"]) == "human_pose_mixture" == str(late.extras["prior_model"])
+    at = int(res.extras["prior_switch_iteration"])
+    assert "prior_switch_iteration" not in late.extras
+    assert 2 <= leads[0] == at < late_leads[0]  # the default's stretch: stopped where judged, or solved to the end
+    assert f"of the leading stretch's poses unfamiliar {at} iterations into its solve" in res.stages[0].changed
+    for key, value in late.extras.items():
+        if key not in ("run_time_s", "prior_default_unfamiliar"):
+            np.testing.assert_array_equal(res.extras[key], value, err_msg=key)
+
+
 def test_a_walk_in_windows_the_default_knows_solves_its_leading_stretch_once(monkeypatch):
     """Judged familiar, the leading stretch's solve (with the limb lengths as globals) is the one
     the windows hold the lengths from: solved once, not again by the windows."""

@@ -248,6 +248,7 @@ def test_the_switch_judged_while_the_first_solve_runs(switch, cued_walk, human):
     solve made beside is dropped while the first one runs, not at the prior stage, and the
     result is the same. Ground truth: the same call with the judging moved past any iteration."""
     from pinrecon import stages as stages_module
+    from pinrecon import unfamiliar
 
     reconstruct_module = sys.modules["pinrecon.reconstruct"]
     real_beside = stages_module.Beside
@@ -263,7 +264,7 @@ def test_the_switch_judged_while_the_first_solve_runs(switch, cued_walk, human):
 
         with pytest.MonkeyPatch.context() as mp:
             mp.setattr(stages_module, "forkable", lambda *a: True)
-            mp.setattr(stages_module, "JUDGED_FROM_ITERATION", judged_from)
+            mp.setattr(unfamiliar, "JUDGED_FROM_ITERATION", judged_from)
             mp.setattr(stages_module, "Beside", beside)
             if switch:
                 mp.setattr(reconstruct_module, "switch_share", lambda *a: -1.0)

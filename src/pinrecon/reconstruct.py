@@ -382,8 +382,8 @@ def _result(run: Run, reports) -> Result:
             result.extras["prior_switch_focal_px"] = np.float64(run.switch_focal)
         if run.early:  # judged at the start's base solve, before any first solve
             result.extras["prior_switch_early"] = np.bool_(True)
-        elif run.judged is not None:  # judged while the first solve ran, which stopped there
-            result.extras["prior_switch_iteration"] = np.int64(run.judged[1])
+        elif run.judged is not None and run.judged.iteration is not None:  # the first solve stopped there
+            result.extras["prior_switch_iteration"] = np.int64(run.judged.iteration)
     if run.conflict is not None:
         result.extras.update(run.conflict.to_extras())
     result.extras.update(run.relabelled)
@@ -411,7 +411,7 @@ def _reconstruct_windowed(problem, inputs, mode, calibrate, auto, start, init, s
         problem = with_lengths(inputs, mode, *found) if found else make_problem(**inputs, calibrate=mode)
     # the tracks' own lifted cues decide the limbs' reflections: no mirror stage (as pinrecon.stages)
     mirrors = not has_lifted(problem)
-    lead, switch, beside, verdict = None, None, None, None
+    lead, switch, beside, verdict, at = None, None, None, None, None
     try:
         if default is not None and not adapt:  # the prior judged on the leading stretch's poses, as its globals
             broader = BROADER_PRIOR.get(default)
@@ -423,11 +423,14 @@ def _reconstruct_windowed(problem, inputs, mode, calibrate, auto, start, init, s
             else:
                 if broader and forkable() and verdict is None:  # the broader prior's stretch meanwhile, in a child
                     beside = Beside(_broader_lead, inputs, mode, found, broader, lift, start, options, span, fork=True)
+                dropped = []  # judged far under the share while solved: the child's stretch is not wanted
                 lead = solve_lead(problem, start, options, callback, window=span, judge=True,
-                                  base=None if judged is None else judged[0])
-                unfamiliar = unfamiliar_poses(lead.problem, lead.problem.figure.normalize(lead.x))
-                switch = broader_prior(default, "auto", {} if unfamiliar is None else unfamiliar.to_extras(),
-                                       share=limit)
+                                  base=None if judged is None else judged[0], limit=limit if broader else None,
+                                  on_keep=lambda: beside is not None and dropped.append(beside.cancel()))
+                beside, at = None if dropped else beside, lead.judged and lead.judged.iteration  # stopped there
+                unfamiliar = None if at else unfamiliar_poses(lead.problem, lead.problem.figure.normalize(lead.x))
+                switch = (broader, lead.judged.share) if at else broader_prior(
+                    default, "auto", {} if unfamiliar is None else unfamiliar.to_extras(), share=limit)
         if switch is not None:
             inputs, problem = _switched(inputs, mode, found, switch[0], lift)
             lead = _taken_lead(beside, callback)  # the broader prior's own stretch (None: solved in the windows')
@@ -441,9 +444,12 @@ def _reconstruct_windowed(problem, inputs, mode, calibrate, auto, start, init, s
         result.extras.update(switch_extras(*switch))
         if verdict == "switch":
             result.extras["prior_switch_early"] = np.bool_(True)
+        elif at:
+            result.extras["prior_switch_iteration"] = np.int64(at)
     changed = f"windows of {span} frames" + (
         f", pose prior -> {switch[0]} ({100 * switch[1]:.0f} % of the leading stretch's poses unfamiliar"
-        f"{' at its base solve' if verdict == 'switch' else ''})" if switch else "")
+        f"{' at its base solve' if verdict == 'switch' else f' {at} iterations into its solve' if at else ''})"
+        if switch else "")
     result.stages = [StageReport("windowed", time.perf_counter() - t0, float(res.initial_cost), float(res.cost),
                                  changed)]
     return result

@@ -74,11 +74,10 @@ from .starts.mirrors import mirror_stage
 from .starts.turns import turn_stage
 from .unfamiliar import (
     BROADER_PRIOR,
-    JUDGED_FROM_ITERATION,
+    JudgedWhile,
     broader_prior,
     early_verdict,
     judged_at_base,
-    judged_share,
     unfamiliar_poses,
     unfamiliar_share,
 )
@@ -137,7 +136,7 @@ class Run:
     spare_cpu: bool = False  # a child may solve beside this process (pinrecon.processes.forkable)
     judging: bool = False  # the prior stage runs (it judges the first solve's poses)
     early: bool = False  # the prior switched at the search's base, before any first solve (EARLY_SWITCH)
-    judged: tuple | None = None  # (share, iteration): the first solve stopped where its poses decided the switch
+    judged: JudgedWhile | None = None  # the first solve's judge (its share and iteration where it switched)
     beside: Beside | None = None  # the prior's switched solve made beside the first solve
 
 
@@ -245,32 +244,25 @@ def _judged_base(run: Run) -> tuple[np.ndarray, float] | None:
     return judged_at_base(run.problem)
 
 
-def _judge_while(run: Run) -> Callable | None:
-    """The first solve's ``stop_when`` where the prior stage judges it: from iteration
-    :data:`~pinrecon.unfamiliar.JUDGED_FROM_ITERATION` on, the share of its poses the default prior
-    does not know, by :func:`~pinrecon.unfamiliar.early_verdict`. Far beyond the switch's share
-    the solve stops there (``run.judged``; the switched solve does not depend on it); far under
-    it the switched solve made beside is dropped (the converged solve is judged as before)."""
+def _judge_while(run: Run) -> JudgedWhile | None:
+    """The first solve's ``stop_when`` where the prior stage judges it (:class:`~pinrecon.unfamiliar.
+    JudgedWhile`; ``run.judged``): far beyond the switch's share it stops there, far under it the
+    switched solve made beside is dropped (the converged solve is judged as before)."""
     if not run.judging or run.early or run.yield_at_start or run.default_prior not in BROADER_PRIOR:
         return None
-    kept = []
 
-    def stop_when(iteration: int, x: np.ndarray) -> str | None:
-        if iteration < JUDGED_FROM_ITERATION or kept:
-            return None
-        share = judged_share(run.problem, x)
-        verdict = early_verdict(share, run.switch_limit)
-        if verdict == "switch":
-            run.judged = (share, iteration)
-            return f"stopped: {100 * share:.0f} % of the poses unfamiliar (the prior's switch)"
-        if verdict == "keep":
-            kept.append(iteration)
-            if run.beside is not None:
-                run.beside.cancel()
-                run.beside = None
-        return None
+    def drop():
+        if run.beside is not None:
+            run.beside.cancel()
+            run.beside = None
 
-    return stop_when
+    run.judged = JudgedWhile(run.problem, run.switch_limit, on_keep=drop)
+    return run.judged
+
+
+def _stopped(run: Run) -> bool:
+    """Whether the first solve stopped where its judge decided the switch (:func:`_judge_while`)."""
+    return run.judged is not None and run.judged.iteration is not None
 
 
 def _switch_early(run: Run, share: float) -> str:
@@ -333,8 +325,8 @@ def _prior(run: Run) -> str | None:
     if run.conflict is not None and run.conflict.conflicting:  # adapted to the keyframes: they decide the poses
         _reissue(run)
         return None
-    if run.judged is not None:  # the first solve stopped where its poses decided (_judge_while)
-        switch, focal = (BROADER_PRIOR[run.default_prior], run.judged[0]), None
+    if _stopped(run):  # the first solve stopped where its poses decided (_judge_while)
+        switch, focal = (BROADER_PRIOR[run.default_prior], run.judged.share), None
     else:
         unfamiliar = unfamiliar_poses(run.problem, run.problem.figure.normalize(run.res.x))
         extras = {} if unfamiliar is None else unfamiliar.to_extras()
@@ -355,7 +347,7 @@ def _prior(run: Run) -> str | None:
     run.mirrors = run.mirrors or run.problem.weights.pose_prior_model in BROADER_PRIOR.values()
     why = f"the auto camera's focal length at {focal:.0f} px, implausible" if focal is not None else \
         f"{100 * switch[1]:.0f} % of the poses unfamiliar" + (
-            f" {run.judged[1]} iterations into the first solve" if run.judged is not None else "")
+            f" {run.judged.iteration} iterations into the first solve" if _stopped(run) else "")
     return f"pose prior {default} -> {switch[0]} ({why}), solved again"
 
 

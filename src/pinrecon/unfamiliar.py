@@ -36,6 +36,7 @@ it knew as in the rest.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -43,7 +44,7 @@ import numpy as np
 from .rows.posture import PosePrior, posture_row
 
 __all__ = ["BROADER_PRIOR", "EARLY_SWITCH", "JUDGED_FROM_ITERATION", "SWITCH_SHARE", "SWITCH_SHARE_MONOCULAR",
-           "UnfamiliarPoses", "broader_prior", "early_verdict", "judged_at_base", "judged_share", "switch_extras",
+           "JudgedWhile", "UnfamiliarPoses", "broader_prior", "early_verdict", "judged_at_base", "judged_share", "switch_extras",
            "switch_share", "unfamiliar_poses", "unfamiliar_share"]
 
 #: the broader prior a clip is solved again with when its default prior does not know most of
@@ -169,6 +170,35 @@ def judged_share(problem, Q) -> float:
     a learned prior)."""
     unfamiliar = unfamiliar_poses(problem, problem.figure.normalize(Q))
     return unfamiliar_share({} if unfamiliar is None else unfamiliar.to_extras())
+
+
+class JudgedWhile:
+    """``stop_when`` of a first solve of ``problem`` (:func:`pinrecon.solver.solve`): from
+    iteration :data:`JUDGED_FROM_ITERATION` on, after each accepted step, the share of the
+    iterate's poses ``problem``'s pose prior does not know, by :func:`early_verdict` at the
+    switch's share ``limit``. "switch" stops the solve (:attr:`share` and :attr:`iteration` say
+    where; the switched solve does not depend on it); "keep" calls ``on_keep()`` (the switched
+    solve made beside is not wanted) and judges no more; otherwise it goes on judging."""
+
+    def __init__(self, problem, limit: float, on_keep: Callable[[], None] | None = None):
+        self.problem, self.limit, self.on_keep = problem, float(limit), on_keep
+        self.share: float | None = None
+        self.iteration: int | None = None
+        self.kept = False
+
+    def __call__(self, iteration: int, x: np.ndarray) -> str | None:
+        if iteration < JUDGED_FROM_ITERATION or self.kept:
+            return None
+        share = judged_share(self.problem, x)
+        verdict = early_verdict(share, self.limit)
+        if verdict == "switch":
+            self.share, self.iteration = share, iteration
+            return f"stopped: {100 * share:.0f} % of the poses unfamiliar (the prior's switch)"
+        if verdict == "keep":
+            self.kept = True
+            if self.on_keep is not None:
+                self.on_keep()
+        return None
 
 
 def judged_at_base(problem) -> tuple[np.ndarray, float]:

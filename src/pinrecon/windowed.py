@@ -56,6 +56,7 @@ import multiprocessing
 import queue as queue_module
 import time
 import warnings
+from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field, replace
@@ -75,7 +76,7 @@ from .starts.hypotheses import hypotheses_start
 from .starts.mirrors import MirrorStage, mirror_stage
 from .starts.turns import TurnStage, turn_stage
 from .tracks import Keyframes
-from .unfamiliar import judged_at_base
+from .unfamiliar import JudgedWhile, judged_at_base
 
 __all__ = [
     "AUTO_WINDOW_FRAMES",
@@ -160,6 +161,7 @@ class Lead:
     identified: object = None
     held_prior: object = None
     reports: dict = field(default_factory=dict)
+    judged: object = None  # the prior's switch judged while it was solved (solve_lead's limit)
 
 
 def _plan(problem, window: int, overlap: int | None):
@@ -191,12 +193,16 @@ def lead_base(problem, start="auto", *, window: int = DEFAULT_WINDOW, overlap: i
 
 def solve_lead(problem, start="auto", options: SolverOptions | None = None, callback=None, *,
                window: int = DEFAULT_WINDOW, overlap: int | None = None, adapt_prior: bool = False,
-               judge: bool = False, base: np.ndarray | None = None) -> Lead:
+               judge: bool = False, base: np.ndarray | None = None, limit: float | None = None,
+               on_keep: Callable[[], None] | None = None) -> Lead:
     """The leading stretch of :func:`solve_windowed` (its first :data:`CALIBRATION_FRAMES`
     frames, or the first window if longer): started, its pose prior adapted (``adapt_prior``),
     and solved with its globals free where ``problem`` has globals or ``judge`` asks for its
     poses (:func:`pinrecon.reconstruct` judges the pose prior on them). An empty :class:`Lead`
-    when there is nothing to do. ``base``: its search's base already solved (:func:`lead_base`)."""
+    when there is nothing to do. ``base``: its search's base already solved (:func:`lead_base`).
+    ``limit``: the prior's switch judged while it is solved, at that share
+    (:class:`~pinrecon.unfamiliar.JudgedWhile` with ``on_keep``, ``Lead.judged``): far beyond it
+    the solve stops there, unfinished."""
     if problem.g0 is None and not adapt_prior and not judge:
         return Lead()
     wp, stretch = _lead_problem(problem, window, overlap)
@@ -209,7 +215,8 @@ def solve_lead(problem, start="auto", options: SolverOptions | None = None, call
         wp = lead.problem = adapt_to_keyframes(wp, q0, wp.g0, keyframes=True)[0]
         lead.held_prior = pose_prior_row(wp) if decided_by_keyframes(wp) else None
     if problem.g0 is not None or judge:  # the globals solved on it, then held in every window
-        res = solve(wp, q0, options, callback, active=wp.active, g0=wp.g0)
+        lead.judged = None if limit is None else JudgedWhile(wp, limit, on_keep)
+        res = solve(wp, q0, options, callback, active=wp.active, g0=wp.g0, stop_when=lead.judged)
         lead.x = res.x
         if problem.g0 is not None:
             lead.g_solved = res.g if res.g is not None else wp.g0
