@@ -31,6 +31,16 @@ the motion itself). Scored against the clip:
 * MPJPE over the tracked points.
 
     OPENBLAS_NUM_THREADS=1 python bench/bench_contact.py [--clips walk run spin] [--cases lab generic]
+
+``--real``: Pose2Sim's real balancing trial instead, each of its four phone videos alone through
+the default path (``Figure.human()``, the auto camera, MediaPipe's tracks and 3D cues as
+bench_video caches them), against its four-camera triangulation: the contacts the feet stage
+found against those pinrecon's own detection finds on the triangulated ankles (a level floor,
+Z up in the calibration's world, through their low heights; ankle-only thresholds), the angle between
+the floor it estimated and the calibration's up (carried into each true camera's frame), and
+PA-MPJPE with the feet stage and without it (``floor="none"``).
+
+    OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 python bench/bench_contact.py --real
 """
 
 from __future__ import annotations
@@ -40,6 +50,7 @@ import quick  # noqa: E402 - bench/quick.py: --quick, applied before pinrecon is
 QUICK = quick.take(["--clips", "walk", "--cases", "lab"])
 
 import argparse
+import sys
 import time
 
 import numpy as np
@@ -128,11 +139,65 @@ def run(clip, case, rows):
               f"floating {1000 * m['floating_m']:5.1f} mm  MPJPE {mpjpe:6.1f} mm  {dt:5.1f} s", flush=True)
 
 
+def real_trial() -> None:
+    """``--real``: the feet stage on Pose2Sim's trial, each camera alone (module docstring)."""
+    import warnings
+
+    import bench_stages
+    import bench_video
+
+    from pinrecon.contact import FootContact, detection_settings
+    from pinrecon.floor import Floor
+    from pinrecon.metrics import pa_mpjpe
+
+    G = bench_video.truth()  # (T, 12, 3), the calibration's world (Z up)
+    names = bench_stages.COCO12
+    ankles = ["left_ankle", "right_ankle"]
+    feet = G[:, [names.index(n) for n in ankles]]
+    floor = Floor(np.array([0.0, 0.0, 1.0]), float(np.nanquantile(feet[..., 2], 0.05)) - ContactSettings().ankle_height_m)
+    true_c = detect_contacts(feet, floor, 60.0, detection_settings(ankles, ContactSettings()))
+    print(f"Pose2Sim's balancing trial, {len(G)} frames; the triangulated ankles' contact frames: "
+          f"{int(true_c[:, 0].sum())} left, {int(true_c[:, 1].sum())} right\n")
+    print("| camera | contacts found left / right | correct | false | missed | recall | precision | "
+          "floor normal to the calibration's up (deg) | PA-MPJPE with / without the feet stage (mm) |")
+    print("|---|---|---:|---:|---:|---:|---:|---:|---|")
+    for cam in (1, 2, 3, 4):
+        tracks, size, P_true, true_cam = bench_stages.real_case(cam, True)
+        pa = {}
+        for label, kw in (("with", {}), ("without", {"floor": "none"})):
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                res = pr.reconstruct(pr.Figure.human(), tracks, "auto", image_size=size, **kw)
+            P = bench_stages.in_true_world(res.keypoints3d[:, res.figure.keypoint_index(names)], res.cameras[0],
+                                           true_cam)
+            ok = np.isfinite(P_true).all(axis=(1, 2))
+            pa[label] = pa_mpjpe(P[ok], P_true[ok])
+            if label == "with":
+                fc = FootContact.from_extras(res.extras)
+                found = np.asarray(fc.contact, bool)[:, [list(fc.names).index(n) for n in ankles]]
+                n_cam = np.asarray(res.cameras[0].R, float) @ np.asarray(fc.floor.normal, float)
+                up_cam = np.asarray(true_cam.R, float) @ floor.normal
+                angle = float(np.degrees(np.arccos(min(1.0, abs(float(n_cam @ up_cam)) / np.linalg.norm(n_cam)))))
+        tp, fp, fn = int((found & true_c).sum()), int((found & ~true_c).sum()), int((~found & true_c).sum())
+        precision = f"{tp / (tp + fp):.2f}" if tp + fp else "-"
+        print(f"| cam{cam:02d} | {int(found[:, 0].sum())} / {int(found[:, 1].sum())} | {tp} | {fp} | {fn} | "
+              f"{tp / max(1, tp + fn):.2f} | {precision} | {angle:.1f} | {pa['with']:.1f} / {pa['without']:.1f} |",
+              flush=True)
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--clips", nargs="*", default=["walk", "run", "spin"])
     ap.add_argument("--cases", nargs="*", default=["lab", "generic"])
+    ap.add_argument("--real", action="store_true", help="Pose2Sim's real trial instead (module docstring)")
     a = ap.parse_args()
+    from provenance import provenance
+
+    print(provenance())
+    print("command: python bench/bench_contact.py " + " ".join(sys.argv[1:]))
+    if a.real:
+        real_trial()
+        return
     rows = []
     for case in a.cases:
         for clip in a.clips:
