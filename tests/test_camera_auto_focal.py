@@ -149,6 +149,63 @@ def test_the_last_move_may_report_from_the_profile_already_solved(short_walk, mo
     assert len(rep_t["profile"]) == 7 and len(rep_f["profile"]) == 8
 
 
+def test_a_profile_that_is_no_valley_moves_the_focal_length_only_within_the_range(short_walk, monkeypatch):
+    """``settle_focal(undetermined_range=(lo, hi))``: a profile falling all the way to its longest
+    focal length (no valley: nothing determined) moves the solve only to its lowest point inside
+    the range, and not at all when no point inside is lower than the fit. With lifted cues the
+    focal stage passes ``stages.FOCAL_PLAUSIBLE`` times the image's diagonal (0.3 to 1.0: a wide
+    angle to a normal lens). Ground truth: the profile written out here, its lowest point inside
+    the range picked by hand."""
+    from pinrecon import solver, stages
+    from pinrecon.lifted import Lifted
+    from pinrecon.starts import camera_auto
+
+    seen = {}
+
+    def observe(problem, res, auto, **kw):
+        seen.update(problem=problem, res=res, auto=auto, kw=kw)
+        return res, auto
+
+    monkeypatch.setattr(stages, "settle_focal", observe)
+    cued = short_walk.frames(0, short_walk.T)
+    X = np.random.default_rng(0).normal(0.0, 0.3, (cued.T, len(cued.names), 3))  # cues: only the path they take
+    cued.lifted = Lifted(X, list(cued.names), np.ones(X.shape[:2]), "camera", "test")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        pr.reconstruct(pr.Figure.human(), cued, "auto", image_size=SIZE, skip=["feet"],
+                       options=pr.SolverOptions(max_iterations=3))
+    diagonal = float(np.hypot(*SIZE))
+    assert seen["kw"]["undetermined_range"] == pytest.approx((0.3 * diagonal, 1.0 * diagonal))
+    problem, res0, auto = seen["problem"], seen["res"], seen["auto"]
+    f_fit = camera_auto.fitted_focal(problem, res0)
+    g_fit = np.asarray(res0.g, float)
+    marks = {}
+
+    def profile(problem, res, steps, options):  # falling to the longest: no valley
+        out = [(f_fit, float(res0.cost), np.asarray(res0.x), g_fit)]
+        for k, f in enumerate((0.5, 0.8, 1.2, 1.5, 2.0, 3.0)):
+            g = g_fit.copy()
+            g[-1] += 1e-3 * (k + 1)  # a mark: which point a solve started from
+            marks[float(g[-1])] = f * f_fit
+            out.append((f * f_fit, float(res0.cost) + (5.0 if f < 1 else -10.0 * f), np.asarray(res0.x), g))
+        return out
+
+    starts = []
+    monkeypatch.setattr(camera_auto, "_profile_solves", profile)
+    monkeypatch.setattr(solver, "solve", lambda problem, x0, options=None, *a, g0=None, **k: starts.append(
+        marks.get(float(np.asarray(g0)[-1]))) or res0)
+    real_settle = camera_auto.settle_focal
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        real_settle(problem, res0, auto, rounds=1, final_profile=False, undetermined_range=(0.4 * f_fit, 1.6 * f_fit))
+        assert starts == [pytest.approx(1.5 * f_fit)]  # the lowest inside: not 2.0 or 3.0 times the fit
+        starts.clear()
+        real_settle(problem, res0, auto, rounds=1, final_profile=False, undetermined_range=(0.4 * f_fit, 1.1 * f_fit))
+        assert starts == []  # the points inside (0.5, 0.8) cost more than the fit: it stays
+        real_settle(problem, res0, auto, rounds=1, final_profile=False)
+        assert starts == [pytest.approx(3.0 * f_fit)]  # no range: the lowest of all
+
+
 def test_the_longer_focal_lengths_are_profiled_beside_with_the_same_points(short_walk, monkeypatch):
     """Where a child can be forked, it solves the profile's longer focal lengths while this
     process solves the shorter ones: the same points to the last digit, three of the six solves
