@@ -229,6 +229,7 @@ def test_a_clip_in_windows_without_keyframes_is_judged_at_its_stretchs_base(rand
             np.testing.assert_array_equal(res.extras[key], value, err_msg=key)
 
 
+@pytest.mark.slow  # two windowed solves (15 s); the stages' judge is tested in the quick suite (test_stages)
 def test_a_clip_in_windows_is_judged_while_its_leading_stretch_is_solved(random_motion):
     """Where the stretch's search base does not decide (here: not judged there), the prior is
     judged while the stretch is solved (``pinrecon.unfamiliar.JudgedWhile``, from its 2nd iteration
