@@ -7,7 +7,6 @@ landmarks must lie near them; the overlay video's drawn keypoints must lie on th
 
 from __future__ import annotations
 
-import os
 import signal
 import sys
 import time
@@ -188,25 +187,6 @@ def test_video_progress_names_each_stage(cut, tracked, tmp_path, capsys):
     assert said == list(STAGES)
     solve_lines = [line for line in err if line.startswith("solve: iter ")]
     assert solve_lines and all("/100  cost " in line for line in solve_lines)
-
-
-@pytest.mark.skipif(not hasattr(os, "getpriority"), reason="no process priorities here")
-def test_the_plots_process_yields_the_cpu(tmp_path, monkeypatch):
-    """The plots' process runs at ``_Plots.NICENESS`` more than the command (its imports and
-    drawing give way to the reconstruction and the overlay); told nothing, it ends."""
-    from pinrecon.commands.video import _Plots
-
-    monkeypatch.setattr("pinrecon.processes.usable_cpus", lambda: 2)
-    plots = _Plots(tmp_path / "result.npz", tmp_path / "plots", [tmp_path / "tracks.json"])
-    plots.start()
-    assert plots.proc is not None
-    want = min(19, os.getpriority(os.PRIO_PROCESS, 0) + _Plots.NICENESS)
-    seen, t0 = None, time.perf_counter()
-    while time.perf_counter() - t0 < 10 and seen != want and plots.proc.poll() is None:
-        seen = os.getpriority(os.PRIO_PROCESS, plots.proc.pid)
-        time.sleep(0.02)
-    plots.stop()
-    assert seen == want and plots.proc.returncode == 0 and not (tmp_path / "plots").exists()
 
 
 @pytest.mark.parametrize("how", ["another process", "here: no interpreter", "here: the process failed"])

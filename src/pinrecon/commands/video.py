@@ -54,15 +54,11 @@ class _Plots:
     error), the plots are drawn in :meth:`result` itself, which then raises any error as it
     would have."""
 
-    #: the process's niceness: its imports (about a CPU second) and drawing yield the CPU to the
-    #: reconstruction and the overlay the command waits on (alternating runs on Pose2Sim's cam02,
-    #: seven each: 6.46 -> 6.30 s end to end, the overlay 0.8-0.9 -> 0.6 s, the plots 0.9 s both)
-    NICENESS = 10
     #: what the process runs: the imports, then ``pinrecon plot`` once told to go (nothing when
     #: its input closes first: the command failed); once it returned (its pictures written, their
     #: names printed) the process ends at once, without the interpreter's teardown (0.1 s with
     #: matplotlib loaded, which the caller would wait for)
-    CODE = ("import os, signal, sys; hasattr(os, 'nice') and os.nice({niceness}); "  # Windows has none
+    CODE = ("import os, signal, sys; "
             "signal.signal(signal.SIGINT, signal.default_int_handler); "  # heard even if ignored here
             "sys.path.append({here!r}); from pinrecon.cli import main; import pinrecon.viz.plots; "
             "import matplotlib.pyplot; code = main() if sys.stdin.readline() == 'go\\n' else 0; "
@@ -93,8 +89,7 @@ class _Plots:
         result_path, folder, tracks_paths = self._command
         here = str(Path(__file__).resolve().parents[2])  # where this pinrecon was imported from, searched last
         try:
-            self.proc = subprocess.Popen([sys.executable, "-c", self.CODE.format(here=here, niceness=self.NICENESS),
-                                          "plot", str(result_path),
+            self.proc = subprocess.Popen([sys.executable, "-c", self.CODE.format(here=here), "plot", str(result_path),
                                           "--out", str(folder), "--tracks", str(tracks_paths[0]), "--no-animation"],
                                          stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                          text=True, env={**os.environ, "MPLBACKEND": "Agg"})
