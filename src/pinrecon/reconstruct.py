@@ -382,7 +382,7 @@ def _result(run: Run, reports) -> Result:
             result.extras["prior_switch_focal_px"] = np.float64(run.switch_focal)
         if run.early:  # judged at the start's base solve, before any first solve
             result.extras["prior_switch_early"] = np.bool_(True)
-        elif run.judged is not None and run.judged.iteration is not None:  # the first solve stopped there
+        elif run.judged is not None and run.judged.stopped:  # the first solve stopped there
             result.extras["prior_switch_iteration"] = np.int64(run.judged.iteration)
     if run.conflict is not None:
         result.extras.update(run.conflict.to_extras())
@@ -423,14 +423,17 @@ def _reconstruct_windowed(problem, inputs, mode, calibrate, auto, start, init, s
             else:
                 if broader and forkable() and verdict is None:  # the broader prior's stretch meanwhile, in a child
                     beside = Beside(_broader_lead, inputs, mode, found, broader, lift, start, options, span, fork=True)
-                dropped = []  # judged far under the share while solved: the child's stretch is not wanted
                 lead = solve_lead(problem, start, options, callback, window=span, judge=True,
                                   base=None if judged is None else judged[0], limit=limit if broader else None,
-                                  on_keep=lambda: beside is not None and dropped.append(beside.cancel()))
-                beside, at = None if dropped else beside, lead.judged and lead.judged.iteration  # stopped there
-                unfamiliar = None if at else unfamiliar_poses(lead.problem, lead.problem.figure.normalize(lead.x))
-                switch = (broader, lead.judged.share) if at else broader_prior(
-                    default, "auto", {} if unfamiliar is None else unfamiliar.to_extras(), share=limit)
+                                  on_keep=None if beside is None else beside.cancel)  # far under the share
+                judge = lead.judged  # the judge while the stretch was solved (None without a broader prior)
+                beside = None if judge is not None and judge.kept else beside  # kept: the child was cancelled
+                if judge is not None and judge.stopped:  # far beyond the share: the stretch stopped there
+                    switch, at = (broader, judge.share), judge.iteration
+                else:
+                    unfamiliar = unfamiliar_poses(lead.problem, lead.problem.figure.normalize(lead.x))
+                    switch = broader_prior(default, "auto", {} if unfamiliar is None else unfamiliar.to_extras(),
+                                           share=limit)
         if switch is not None:
             inputs, problem = _switched(inputs, mode, found, switch[0], lift)
             lead = _taken_lead(beside, callback)  # the broader prior's own stretch (None: solved in the windows')

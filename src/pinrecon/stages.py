@@ -266,7 +266,7 @@ def _judge_while(run: Run) -> JudgedWhile | None:
 
 def _stopped(run: Run) -> bool:
     """Whether the first solve stopped where its judge decided the switch (:func:`_judge_while`)."""
-    return run.judged is not None and run.judged.iteration is not None
+    return run.judged is not None and run.judged.stopped
 
 
 def _switch_early(run: Run, share: float) -> str:

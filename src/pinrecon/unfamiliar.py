@@ -186,6 +186,11 @@ class JudgedWhile:
         self.iteration: int | None = None
         self.kept = False
 
+    @property
+    def stopped(self) -> bool:
+        """Whether it stopped the solve (the clip switches: :attr:`share`, :attr:`iteration`)."""
+        return self.iteration is not None
+
     def __call__(self, iteration: int, x: np.ndarray) -> str | None:
         if iteration < JUDGED_FROM_ITERATION or self.kept:
             return None
