@@ -191,6 +191,7 @@ def test_a_clip_in_windows_judges_its_prior_on_the_leading_stretch(random_motion
     assert "of the leading stretch's poses unfamiliar" in res.stages[0].changed
 
 
+@pytest.mark.slow  # two windowed solves (13 s): CI runs it
 def test_a_clip_in_windows_without_keyframes_is_judged_at_its_stretchs_base(random_motion, monkeypatch):
     """Without keyframes (the search starts the leading stretch) the prior is judged first at the
     search's base solve of the stretch (``pinrecon.windowed.lead_base``): these random poses are

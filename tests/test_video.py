@@ -496,6 +496,7 @@ def test_a_small_person_in_a_wide_shot_is_found_in_a_crop(cut, tracked, tmp_path
     assert "--crop" in capsys.readouterr().err and not (tmp_path / "o3").exists()
 
 
+@pytest.mark.slow  # MediaPipe over the cut twice (12 s): CI runs it
 def test_the_detectors_threads_reach_its_graph_and_change_no_landmark(cut, tracked, monkeypatch):
     """MediaPipe's legacy Pose takes no thread count: pinrecon sets its networks' XNNPACK threads
     as the graph is built (every CPU by default, 22 -> 14.5 ms a 1080 x 1920 frame on two). The
