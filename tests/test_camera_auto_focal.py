@@ -79,6 +79,25 @@ def short_walk():
     return project_tracks(fig, Q, cam, BODY, fps=30.0, noise_px=1.0, seed=3)
 
 
+@pytest.fixture(scope="module")
+def focal_inputs(short_walk):
+    """What the focal stage is given (problem, solution, auto camera) on the short walk from
+    a start 30 % long, its solve stopped part-way down the valley (4 iterations): observed
+    by replacing ``settle_focal`` for the one call. The stages that cannot move the focal
+    length's inputs here (turns, mirrors, faults, feet) are skipped."""
+    from pinrecon import stages
+
+    seen = {}
+    fov = float(np.degrees(2.0 * np.arctan(SIZE[0] / 2.0 / (1.3 * F_TRUE))))
+    with pytest.MonkeyPatch.context() as mp, warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        mp.setattr(stages, "settle_focal", lambda problem, res, auto, **kw: seen.update(
+            problem=problem, res=res, auto=auto) or (res, auto))
+        pr.reconstruct(pr.Figure.human(), short_walk, AutoCamera(SIZE, fov_deg=fov),
+                       skip=["turns", "mirrors", "faults", "feet"], options=pr.SolverOptions(max_iterations=4))
+    return seen["problem"], seen["res"], seen["auto"]
+
+
 @pytest.mark.parametrize("k", [pytest.param(0.7, marks=pytest.mark.slow), 1.3])  # 11 s each: the short start in CI
 def test_focal_from_a_start_30_percent_off_is_found_or_said_to_be_unknown(short_walk, k):
     """The issue's target is recovery within 10 % of the true focal length from a start
@@ -105,27 +124,15 @@ def test_focal_from_a_start_30_percent_off_is_found_or_said_to_be_unknown(short_
     assert lo <= F_TRUE <= hi
 
 
-def test_the_last_move_may_report_from_the_profile_already_solved(short_walk, monkeypatch):
+def test_the_last_move_may_report_from_the_profile_already_solved(focal_inputs, monkeypatch):
     """``settle_focal(final_profile=False)`` (the cue path's focal stage): the same move, and a
     report made from the first profile's points and the moved solve instead of six more
     solves. Ground truth: the same call with the profile solved again (the moved solutions
     equal), and the points the first profile printed."""
-    from pinrecon import solver, stages
+    from pinrecon import solver
     from pinrecon.starts.camera_auto import settle_focal
 
-    seen = {}
-
-    def observe(problem, res, auto, **kw):
-        seen.update(problem=problem, res=res, auto=auto)
-        return settle_focal(problem, res, auto, **kw)
-
-    monkeypatch.setattr(stages, "settle_focal", observe)
-    fov = float(np.degrees(2.0 * np.arctan(SIZE[0] / 2.0 / (1.3 * F_TRUE))))
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        pr.reconstruct(pr.Figure.human(), short_walk, AutoCamera(SIZE, fov_deg=fov), skip=["feet"],
-                       options=pr.SolverOptions(max_iterations=4))  # stopped part-way down the valley
-    problem, res0, auto = seen["problem"], seen["res"], seen["auto"]
+    problem, res0, auto = focal_inputs
     calls, real = [], solver.solve
     monkeypatch.setattr(solver, "solve", lambda *a, **k: calls.append(1) or real(*a, **k))
     monkeypatch.setattr("pinrecon.starts.camera_auto.forkable", lambda *a: False)  # every solve here, where it is counted
@@ -206,20 +213,13 @@ def test_a_profile_that_is_no_valley_moves_the_focal_length_only_within_the_rang
         assert starts == [pytest.approx(3.0 * f_fit)]  # no range: the lowest of all
 
 
-def test_the_longer_focal_lengths_are_profiled_beside_with_the_same_points(short_walk, monkeypatch):
+def test_the_longer_focal_lengths_are_profiled_beside_with_the_same_points(focal_inputs, monkeypatch):
     """Where a child can be forked, it solves the profile's longer focal lengths while this
     process solves the shorter ones: the same points to the last digit, three of the six solves
     here. Ground truth: the profile solved here alone."""
-    from pinrecon import solver, stages
+    from pinrecon import solver
     from pinrecon.starts.camera_auto import check_focal
 
-    seen = {}
-    monkeypatch.setattr(stages, "settle_focal", lambda problem, res, auto, **kw: seen.update(
-        problem=problem, res=res, auto=auto) or (res, auto))
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        pr.reconstruct(pr.Figure.human(), short_walk, AutoCamera(SIZE, fov_deg=60.0), skip=["feet"],
-                       options=pr.SolverOptions(max_iterations=4))
     calls, real = [], solver.solve
     monkeypatch.setattr(solver, "solve", lambda *a, **k: calls.append(1) or real(*a, **k))
     out = {}
@@ -228,7 +228,7 @@ def test_the_longer_focal_lengths_are_profiled_beside_with_the_same_points(short
         calls.clear()
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            out[fork] = check_focal(seen["problem"], seen["res"], seen["auto"])["focal"], len(calls)
+            out[fork] = check_focal(*focal_inputs)["focal"], len(calls)
     (here, n_here), (beside, n_beside) = out[False], out[True]
     assert (n_here, n_beside) == (6, 3)
     assert len(here["profile"]) == 7 and here["profile"] == beside["profile"]

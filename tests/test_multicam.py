@@ -114,7 +114,7 @@ def test_generic_human_calibrated_by_default_with_several_cameras(walk60):
     # several cameras fix the limbs' lengths and the figure's size; one camera neither
     ident = res.calibration["identifiability"]
     assert ident["size_determined"] and not {"thigh", "shank", "upper_arm", "forearm"} & set(ident["undetermined"])
-    single = pr.reconstruct(human, tracks[0], cams[0])
+    single = pr.reconstruct(human, tracks[0], cams[0], skip=["turns", "mirrors", "faults", "feet"])  # not lengths
     one = single.calibration["identifiability"]
     assert not one["size_determined"] and one["size_ratio"] > 0.9
     assert {"thigh", "shank", "upper_arm", "forearm"} <= set(one["undetermined"])
