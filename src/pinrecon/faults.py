@@ -23,8 +23,10 @@ the solution to look at every frame again:
   side-on (where left and right cross in the image) keeps its labels: only the exchanged
   labelling makes that crossing a kink. The labelling that agrees with the detector on most
   frames is taken as right. :func:`relabel_sides` exchanges the labels of those frames. A
-  lifter's 3D is judged by its own continuity (MediaPipe's world landmarks keep the sides as
-  its 2D does; another lifter's need not).
+  lifter's 3D is judged by its own continuity with the 2D's labelling as a prior (each frame
+  labelled otherwise costs :data:`PRIOR_COST`): a lifter keeps the sides of the 2D it lifted
+  (MediaPipe's world landmarks keep its 2D's), so its own spans are found where its continuity
+  says so clearly, but one doubtful exchange does not turn a whole tail of the clip over.
 * **Outliers** (:func:`find_outliers`): observed points whose reprojection error after
   convergence exceeds ``max(5 sigma_px, median + 5 MAD-sigma)`` of all points' errors
   are reported (frame, name, error); they are left in, down-weighted by the loss.
@@ -66,6 +68,12 @@ def left_right_pairs(names) -> list[tuple[int, int]]:
 #: the cost of one exchange of the labels between two frames, in the person's sizes of
 #: displacement (:func:`side_swap_frames`)
 SWITCH_COST = 0.3
+#: the cost of a frame labelled otherwise than a given labelling says (:func:`side_swap_frames`'s
+#: ``prior``; the 2D's labelling for the 3D a lifter made of it), in the same units: a span of
+#: its own is still found where the 3D's continuity says so clearly, never a clip's whole tail
+#: turned over by one doubtful exchange (MediaPipe's 3D of Pose2Sim's camera 2 played forwards and
+#: backwards to 2400 frames, without it: the last 800 frames against its 2D; bench/README.md)
+PRIOR_COST = 0.05
 #: the weight of the acceleration term against the displacements (:func:`side_swap_frames`):
 #: at 1, fast spins seen at 20-40 frames/s had spans relabelled wrongly in 12 of 216 synthetic
 #: cases (bench/bench_side_swaps.py); at 2 and 3 none, and Pose2Sim's real span still found
@@ -112,18 +120,28 @@ def _pair_terms(points: np.ndarray, pairs) -> list[tuple[tuple[int, ...], np.nda
     return terms
 
 
-def side_swap_frames(tracks) -> np.ndarray:
+def side_swap_frames(tracks, prior=None) -> np.ndarray:
     """Frames (indices into ``tracks``) whose left/right labels are the other way round from
     the rest of the clip, judged by the tracks' continuity alone (see the module's
     docstring); empty when the names have no left/right pairs or the clip is shorter than
-    four frames. The labelling that holds on most frames is taken as right."""
+    four frames. The labelling that holds on most frames is taken as right.
+
+    ``prior``: frames expected exchanged (a lifter's 3D: the frames found in the 2D it was made
+    from, whose sides it keeps); then each frame labelled otherwise costs :data:`PRIOR_COST`,
+    and the labelling that holds on most frames is no longer the rule."""
     pairs = left_right_pairs(list(tracks.names))
     T = int(tracks.points.shape[0])
-    if not pairs or T < 4:
+    expected = None
+    if prior is not None:
+        expected = np.zeros(T, int)
+        expected[np.asarray(prior, int)] = 1
+    if not pairs:
         return np.zeros(0, int)
+    if T < 4:
+        return np.zeros(0, int) if expected is None else np.flatnonzero(expected)
     terms = _pair_terms(tracks.points, pairs)
     if not terms:
-        return np.zeros(0, int)
+        return np.zeros(0, int) if expected is None else np.flatnonzero(expected)
     # windows of four frames' labels (bits: frame t-3 .. t); every term ends at the window's last frame
     full = np.array([[(w >> (3 - i)) & 1 for i in range(4)] for w in range(16)])
     step = np.zeros((T, 16))
@@ -136,6 +154,8 @@ def side_swap_frames(tracks) -> np.ndarray:
             pattern = 2 * (full[:, 3 - span + 1] != first) + (full[:, 3] != first)
         step[span:span + len(cost)] += cost[:, pattern]
     step += SWITCH_COST * (full[:, 3] != full[:, 2])
+    if expected is not None:
+        step += PRIOR_COST * (full[None, :, 3] != expected[:, None])
     # the first three frames: the terms inside them (those whose first frame is not before 0)
     start = np.zeros(8)
     for w in range(8):
@@ -149,6 +169,8 @@ def side_swap_frames(tracks) -> np.ndarray:
                     else:
                         start[w] += cost[t - span, 2 * int(lab[t - 1] != lab[t - 2]) + int(lab[t] != lab[t - 2])]
         start[w] += SWITCH_COST * ((lab[0] != lab[1]) + (lab[1] != lab[2]))
+        if expected is not None:
+            start[w] += PRIOR_COST * sum(int(lab[i] != expected[i]) for i in range(3))
     value, back = start, np.zeros((T, 8), int)
     prev_of = np.array([[(w >> 1), (w >> 1) | 4] for w in range(8)])  # the windows a window follows
     for t in range(3, T):
@@ -162,7 +184,7 @@ def side_swap_frames(tracks) -> np.ndarray:
         labels[t] = w & 1
         w = back[t, w]
     labels[:3] = [(w >> 2) & 1, (w >> 1) & 1, w & 1]
-    if labels.sum() > T / 2:
+    if expected is None and labels.sum() > T / 2:
         labels = 1 - labels
     return np.flatnonzero(labels)
 

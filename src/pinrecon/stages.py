@@ -148,13 +148,13 @@ def relabel_spans(tracks):
     """``(tracks, frames, lifted)``: the tracks (or list of them, one per camera) with the
     frames whose left and right labels are the other way round relabelled
     (:func:`pinrecon.faults.side_swap_frames`; a lifter's 3D on the tracks by its own
-    continuity), and those frames per camera (lists: the 2D's, the 3D's, None for tracks without
+    continuity, the 2D's frames its prior), and those frames per camera (lists: the 2D's, the 3D's, None for tracks without
     a lifter's 3D)."""
     several = isinstance(tracks, (list, tuple))
     out, frames, lifted = [], [], []
     for t in tracks if several else [tracks]:
         f = side_swap_frames(t)
-        g = side_swap_frames(t.lifted) if t.lifted is not None else None
+        g = side_swap_frames(t.lifted, prior=f) if t.lifted is not None else None
         out.append(relabel_sides(t, f, g) if len(f) or g is not None and len(g) else t)
         frames.append(f)
         lifted.append(g)
