@@ -108,10 +108,15 @@ def cued_walk(coco_walk):
     return tr, P[:30]
 
 
-def test_with_lifted_cues_one_start_and_no_mirror_stage(cued_walk, human):
+def test_with_lifted_cues_one_start_and_no_mirror_or_turn_stage(cued_walk, human, monkeypatch):
+    from pinrecon import stages as stages_module
+
+    turned = []
+    monkeypatch.setattr(stages_module, "turn_stage", lambda *a, **k: turned.append(1))
     res = _solve(cued_walk, human)
     rep = {s.name: s.changed for s in res.stages}
     assert rep["mirrors"].startswith("skipped")
+    assert rep["turns"].startswith("skipped") and turned == []
     assert "hypothesis_chains" not in res.extras  # the lifted start, not the search
     kp = res.figure.keypoint_index(list(cued_walk[0].names))
     assert pa_mpjpe(res.keypoints3d[:, kp], cued_walk[1]) < 40.0

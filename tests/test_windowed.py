@@ -247,8 +247,9 @@ def test_cli_window_option(tmp_path, walk_300):
 @pytest.mark.parametrize("cues", [True, False])
 def test_with_the_tracks_own_lifted_cues_the_windows_have_no_mirror_stage(coco_walk, human, monkeypatch, cues):
     """As in the batch path (``pinrecon.stages``): the lifter's 3D decides the limbs'
-    reflections, so the windows run no mirror stage with the broader prior when the tracks carry
-    it, and run it when they do not. Ground truth: the true walk."""
+    reflections and the heading, so the windows run no mirror stage with the broader prior and
+    no turn stage when the tracks carry it, and run them when they do not. Ground truth: the
+    true walk."""
     from pinrecon.lifted import Lifted
     from pinrecon.metrics import pa_mpjpe
     from pinrecon.weights import Weights
@@ -261,10 +262,12 @@ def test_with_the_tracks_own_lifted_cues_the_windows_have_no_mirror_stage(coco_w
     calls = []
     real = windowed.mirror_stage
     monkeypatch.setattr(windowed, "mirror_stage", lambda *a: calls.append(1) or real(*a))
+    turned, real_turns = [], windowed.turn_stage
+    monkeypatch.setattr(windowed, "turn_stage", lambda *a, **k: turned.append(1) or real_turns(*a, **k))
     monkeypatch.setattr(windowed, "usable_cpus", lambda: 1)  # the windows here, where the calls are counted
     res = pr.reconstruct(human, tr, cam, window=40, weights=Weights(pose_prior_model="human_pose_mixture"),
                          options=SolverOptions(max_iterations=15))
-    assert (len(calls) == 0) if cues else (len(calls) == 2)  # two windows of 40 frames over 60
+    assert (len(calls), len(turned)) == ((0, 0) if cues else (2, 2))  # two windows of 40 frames over 60
     kp = res.figure.keypoint_index(list(tr.names))
     assert pa_mpjpe(res.keypoints3d[:, kp], P[:60]) < 60.0
 

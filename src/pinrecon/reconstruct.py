@@ -409,8 +409,8 @@ def _reconstruct_windowed(problem, inputs, mode, calibrate, auto, start, init, s
         if found is None:  # nothing measured: the figure's own lengths
             mode = "camera" if auto is not None else "none"
         problem = with_lengths(inputs, mode, *found) if found else make_problem(**inputs, calibrate=mode)
-    # the tracks' own lifted cues decide the limbs' reflections: no mirror stage (as pinrecon.stages)
-    mirrors = not has_lifted(problem)
+    # the tracks' own lifted cues decide the limbs' reflections and the heading: no mirror or turn stage (as stages)
+    uncued = not has_lifted(problem)
     lead, switch, beside, verdict, at = None, None, None, None, None
     try:
         if default is not None and not adapt:  # the prior judged on the leading stretch's poses, as its globals
@@ -440,8 +440,8 @@ def _reconstruct_windowed(problem, inputs, mode, calibrate, auto, start, init, s
     finally:
         if beside is not None:
             beside.cancel()  # not taken: the clip keeps the default
-    res = solve_windowed(problem, start, options, callback, window=span, mirrors=mirrors and _mirrors(problem, init),
-                         adapt_prior=adapt, n_jobs=-1, lead=lead)
+    res = solve_windowed(problem, start, options, callback, window=span, mirrors=uncued and _mirrors(problem, init),
+                         adapt_prior=adapt, n_jobs=-1, lead=lead, turns=uncued)
     result = _package(problem, res, auto, identify=False, judge=default if switch else None)
     if switch is not None:
         result.extras.update(switch_extras(*switch))

@@ -461,6 +461,8 @@ def _warm(name: str, fn) -> Callable:
             return None
         if name == "mirrors" and _cued(run):
             return "skipped: the lifted cues decide the limbs' reflections"
+        if name == "turns" and _cued(run):  # measured: none kept on bench_stages' clips, 15 s on a long video
+            return "skipped: the lifted cues decide the heading through fast turns"
         before = run.res
         run.res = fn(run.problem, run.res, run.options, run.callback)
         return "nothing kept" if run.res is before else "changed (warm re-solve kept)"
