@@ -266,6 +266,33 @@ def test_foot_keypoints_of_the_figures():
 def test_settings_are_checked():
     with pytest.raises(InputError, match="sigma_velocity_mps"):
         ContactSettings(sigma_velocity_mps=0.0)
+    with pytest.raises(InputError, match="refine_iterations"):
+        ContactSettings(refine_iterations=0)
+
+
+def test_every_round_but_the_last_is_capped(monkeypatch):
+    """The rounds before the last only refine the next round's contacts and floor: their solves
+    stop after ``refine_iterations``; the last runs with the caller's options. Ground truth: the
+    options each solve was given."""
+    from pinrecon import contact
+    from pinrecon.reconstruct import build_problem
+    from pinrecon.synthetic import project_tracks, side_camera
+
+    fig = pr.Figure.human()
+    q = smooth_motion(fig, 20, 30.0, seed=3)
+    cam = side_camera(q, 45.0)
+    tracks = project_tracks(fig, q, cam, fps=30.0, noise_px=0.5, seed=4)
+    setup = build_problem(fig, tracks, cam, calibrate="none")
+    real = contact.solve
+    res = real(setup.problem, setup.q0, active=setup.active, g0=setup.g0)
+    given = []
+    monkeypatch.setattr(contact, "solve", lambda p, x, options, *a, **k: given.append(options) or real(p, x, options, *a, **k))
+    options = pr.SolverOptions(max_iterations=50)
+    low = float(fig.keypoints(q)[:, fig.keypoint_index(["left_ankle", "right_ankle"]), 1].min())
+    settings = ContactSettings(rounds=3, refine_iterations=2)
+    contact.solve_on_the_floor(setup.problem, res, f"y={low - 0.07}", {"left_ankle": [[2, 8]]}, settings=settings,
+                               options=options)
+    assert [o.max_iterations for o in given] == [2, 2, 50]
 
 
 # ----------------------------------------------------------------------------- the pipeline

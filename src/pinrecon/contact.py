@@ -35,7 +35,7 @@ from .floor import Floor, as_floor
 from .rows.contact import ContactHeight, ContactVelocity
 from .rows.floor import FloorPenetration
 from .rows.points3d import Points3D
-from .solver import globals_of, solve
+from .solver import SolverOptions, globals_of, solve
 
 __all__ = [
     "FOOT_EXTRAS", "ContactSettings", "Floor", "FootContact", "body_up", "contact_heights", "contact_rows",
@@ -92,6 +92,9 @@ class ContactSettings:
     min_contact_s : shorter contacts are dropped; gaps shorter than ``max_gap_s`` are filled.
     low_quantile : the quantile of a point's heights taken as its lowest level.
     rounds : solves with contact rows (detection and floor refined before each).
+    refine_iterations : Gauss-Newton iterations at most in each round but the last (its
+        solution only refines the next round's detection and floor; the last round runs to
+        convergence).
     floor_margin_m : how far below its lowest height (1st percentile over the motion, or
         its contact height when lower) a foot point may go before the non-penetration
         barrier acts.
@@ -133,6 +136,7 @@ class ContactSettings:
     max_gap_s: float = 0.04
     low_quantile: float = 0.05
     rounds: int = 2
+    refine_iterations: int = 12
     ankle_height_m: float = 0.07
     floor_margin_m: float = 0.005
     trim_s: float = 0.0
@@ -148,7 +152,7 @@ class ContactSettings:
         for f in fields(self):
             v = getattr(self, f.name)
             ok = isinstance(v, (int, float)) and np.isfinite(v) and v >= 0
-            if f.name.startswith("sigma") or f.name == "rounds":
+            if f.name.startswith("sigma") or f.name in ("rounds", "refine_iterations"):
                 ok = ok and v > 0
             if not ok:
                 raise InputError(f"must be a non-negative number (positive for weights), got {v!r}",
@@ -643,11 +647,13 @@ def solve_on_the_floor(problem, res, floor="auto", contact="auto", *, settings: 
     names = _foot_names(problem)
     free = names + leg_points(problem.figure, names, _observed_names(problem))
     hold = hold_rows(problem, x, globals_of(res), free, s.hold_m) if s.hold_m > 0 else []
-    for _ in range(int(s.rounds)):
+    opt = options or SolverOptions()
+    refine = replace(opt, max_iterations=min(opt.max_iterations, int(s.refine_iterations)))
+    for k in range(int(s.rounds)):
         g = globals_of(res)
         feet = ground_contacts(problem, x, floor, contact, s, names=names, g=g)
         out_problem = problem.with_rows(contact_rows(problem.figure, feet, problem.fps, s, problem.factor) + hold)
-        res = solve(out_problem, x, options, callback, active=problem.active, g0=g,
+        res = solve(out_problem, x, opt if k == int(s.rounds) - 1 else refine, callback, active=problem.active, g0=g,
                     active_globals=None if g is None else _free_globals(problem, g))
         x = res.x
     return out_problem, res, feet
