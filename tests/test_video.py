@@ -11,6 +11,7 @@ import signal
 import sys
 import time
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -248,6 +249,24 @@ def test_an_overlay_that_fails_stops_the_plots_and_leaves_no_half_written_folder
     assert len(procs) == 1 and procs[0].returncode not in (None, 0)  # stopped, not finished
     plots = tmp_path / "out" / "plots"
     assert not plots.exists() or not any(plots.iterdir())
+
+def test_the_plots_seconds_are_their_process_s_not_the_wait_for_the_overlay(tmp_path, monkeypatch):
+    """``pinrecon video`` collects the plots after the overlay is written: the seconds it prints
+    for them are their process's, from "go" to its end, not that wait. Ground truth: a process
+    that takes 0.3 s, collected 1.5 s after it was told to go."""
+    from pinrecon.commands import video as video_module
+
+    monkeypatch.setattr("pinrecon.processes.usable_cpus", lambda: 2)
+    plots = video_module._Plots(tmp_path / "result.npz", tmp_path / "plots", [tmp_path / "tracks.json"])
+    plots.CODE = ("import os, sys, time; sys.stdin.readline(); time.sleep(0.3); print('drawn.png'); "
+                  "sys.stdout.flush(); os._exit(0)")
+    plots.start()
+    time.sleep(0.5)  # its Python started
+    plots.go()
+    time.sleep(1.5)  # the overlay being written
+    assert plots.result(None, [None]) == [Path("drawn.png")]
+    assert 0.3 <= plots.seconds < 1.0
+
 
 def test_the_plots_process_starts_after_the_detector_and_ends_without_drawing_when_it_fails(cut, tracked, tmp_path,
                                                                                              monkeypatch):

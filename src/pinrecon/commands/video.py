@@ -72,7 +72,7 @@ class _Plots:
         from ..processes import usable_cpus
 
         self.folder, self.proc, self.seconds, self.t0 = folder, None, None, time.perf_counter()
-        self.going, self._command = False, None
+        self.going, self._command, self._ended = False, None, None
         if len(tracks_paths) != 1 or mp.parent_process() is not None or usable_cpus() < 2 \
                 or importlib.util.find_spec("matplotlib") is None:  # no viz extra: said by result()
             return
@@ -106,7 +106,20 @@ class _Plots:
             self.proc.stdin.flush()  # communicate() closes it
             self.going = True
         except OSError:  # the process has ended: result() draws here
-            pass
+            return
+        import threading
+
+        self._ended = threading.Event()
+        threading.Thread(target=self._watch, args=(self.proc, self._ended), name="pinrecon-plots", daemon=True).start()
+
+    def _watch(self, proc, ended) -> None:
+        """When the process ends (its pictures drawn): :attr:`seconds`, though :meth:`result` is
+        called later (after the overlay)."""
+        try:
+            proc.wait()
+        finally:
+            self.seconds = time.perf_counter() - self.t0
+            ended.set()
 
     def stop(self) -> None:
         """Stop the process (the caller failed): before :meth:`go` it ends without drawing;
@@ -131,7 +144,8 @@ class _Plots:
             self.stop()
         if self.proc is not None and self.going:
             out, _ = self.proc.communicate()
-            self.seconds = time.perf_counter() - self.t0
+            if self._ended is None or not self._ended.wait(5.0):
+                self.seconds = time.perf_counter() - self.t0
             if self.proc.returncode == 0:
                 return [Path(line) for line in out.splitlines() if line.strip()]
         from ..viz import plot_result
