@@ -43,6 +43,23 @@ RUN_FIRST = ("test_your_video.py", "test_fuzz_loaders.py", "test_stages.py", "te
              "test_video.py", "test_camera_auto.py", "test_edges.py")
 
 
+#: the modules that define pinrecon's warning categories (tests/test_house.py checks the list)
+WARNING_MODULES = ("pinrecon.io.track_arrays", "pinrecon.starts.camera_auto")
+
+
+def pytest_configure(config):
+    """Under ``pytest -n``, the controller rebuilds each warning a worker reports by importing the
+    module of its category (``pinrecon.io.track_arrays.TracksWarning``,
+    ``pinrecon.starts.camera_auto.FocalLengthWarning``), in one thread per worker: two such
+    warnings at once imported pinrecon in two threads and deadlocked on its import chain
+    (``_DeadlockError``, the run aborted). Imported here first, in one thread."""
+    if not hasattr(config, "workerinput") and config.pluginmanager.hasplugin("xdist"):
+        import importlib
+
+        for module in WARNING_MODULES:
+            importlib.import_module(module)
+
+
 def pytest_collection_modifyitems(config, items):
     """The longest files first (:data:`RUN_FIRST`). Tests marked ``slow`` are skipped, with the
     reason printed (``-ra``), unless ``PINRECON_SLOW=1``: the test command stays under 5 minutes;

@@ -194,3 +194,19 @@ def test_reconstruct_reads_as_a_list_of_stages():
 
     lines, _ = inspect.getsourcelines(sys.modules["pinrecon.reconstruct"].reconstruct)
     assert len(lines) < 60, f"reconstruct() has {len(lines)} lines"
+
+
+def test_the_controller_imports_every_module_with_a_warning_category():
+    """``pytest -n``'s controller imports the modules of pinrecon's warning categories first
+    (``conftest.WARNING_MODULES``; rebuilding a worker's warning imports its category's module, in
+    one thread per worker, and two at once deadlocked): every class that derives from a
+    ``Warning`` is in one of them."""
+    from conftest import WARNING_MODULES
+
+    found = set()
+    for name, path in MODS.items():
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ClassDef) and any(
+                    getattr(b, "id", getattr(b, "attr", "")).endswith("Warning") for b in node.bases):
+                found.add(name)
+    assert found and found <= set(WARNING_MODULES), sorted(found)
