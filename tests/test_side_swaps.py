@@ -147,3 +147,15 @@ def test_one_exchanged_frame_of_the_3d_does_not_turn_the_rest_over(camera_2, k):
     in_2d = sorted(set(side_swap_frames(camera_2).tolist()) ^ {k})  # the 2D exchanged on frame k too
     assert len(set(side_swap_frames(lifted).tolist()) ^ set(in_2d)) >= 10  # by continuity alone: a span turned over
     assert side_swap_frames(lifted, prior=in_2d).tolist() == in_2d
+
+
+def test_long_lists_of_frames_are_cut_in_the_summaries():
+    """A long clip's relabelled frames (2400 frames of a video played back and forth: about 130
+    ranges) are said as their first ranges and a count; the result's extras keep them all."""
+    from pinrecon.result import spans_text
+
+    frames = np.r_[3:6, 9, 20:23]
+    assert spans_text(frames) == "3-5, 9, 20-22"
+    assert spans_text(frames, 2) == "3-5, 9, ... (3 ranges, 7 frames in all)"
+    assert spans_text(frames, 3) == spans_text(frames)
+    assert spans_text([], 2) == ""

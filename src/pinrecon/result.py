@@ -30,14 +30,22 @@ from .starts.camera_auto import implausible_focal
 __all__ = ["Result", "StageReport", "check_motion", "hypothesis_spans", "load_result"]
 
 
-def spans_text(frames) -> str:
-    """Frames as ranges: ``41-63, 65, 67-73``."""
+def spans_text(frames, limit: int | None = None) -> str:
+    """Frames as ranges: ``41-63, 65, 67-73``; with ``limit``, at most that many ranges, then
+    ``... (N ranges, M frames in all)``."""
     f = np.asarray(frames, int)
     if not len(f):
         return ""
     cut = np.flatnonzero(np.diff(f) > 1)
     starts, ends = f[np.r_[0, cut + 1]], f[np.r_[cut, len(f) - 1]]
-    return ", ".join(str(a) if a == b else f"{a}-{b}" for a, b in zip(starts, ends))
+    text = [str(a) if a == b else f"{a}-{b}" for a, b in zip(starts, ends)]
+    if limit is not None and len(text) > limit:
+        return ", ".join(text[:limit]) + f", ... ({len(text)} ranges, {len(f)} frames in all)"
+    return ", ".join(text)
+
+
+#: ranges of frames a summary line lists at most (the result's extras hold them all)
+SPANS_SHOWN = 12
 
 
 @dataclass
@@ -281,8 +289,9 @@ class Result:
         g = np.asarray(x["relabelled_lifted_frames"], int) if "relabelled_lifted_frames" in x else f
         if len(f) or len(g):
             lines.append("the detector kept left and right the other way round on frames "
-                         f"{spans_text(f) or 'none'}" + ("" if np.array_equal(f, g) else
-                                                        f" (its 3D on frames {spans_text(g) or 'none'})")
+                         f"{spans_text(f, SPANS_SHOWN) or 'none'}" + ("" if np.array_equal(f, g) else
+                                                                     f" (its 3D on frames "
+                                                                     f"{spans_text(g, SPANS_SHOWN) or 'none'})")
                          + " (the tracks' continuity says so): relabelled before the solve; --skip labels keeps "
                          "the detector's labels")
         if "repaired_frames" in x:

@@ -64,7 +64,7 @@ from .faults import fault_stage, relabel_sides, report_outliers, side_swap_frame
 from .prior_yield import adapt_prior, yield_to_data
 from .problem import ReconstructionProblem, make_problem
 from .processes import Beside, forkable
-from .result import StageReport, spans_text
+from .result import SPANS_SHOWN, StageReport, spans_text
 from .solver import SolveResult, SolverOptions, solve
 from .starts import auto_start, initial_trajectory, searches
 from .starts.camera_auto import fitted_focal, implausible_focal, settle_focal
@@ -192,8 +192,8 @@ def _labels(run: Run) -> str | None:
         return None
     run.problem, run.relabelled = problem, extras
     names = problem.camera_names
-    said = [(f"{names[v]}: " if v else "") + (spans_text(f) or "none")
-            + ("" if g is None or np.array_equal(f, g) else f" (its 3D: {spans_text(g) or 'none'})")
+    said = [(f"{names[v]}: " if v else "") + (spans_text(f, SPANS_SHOWN) or "none")
+            + ("" if g is None or np.array_equal(f, g) else f" (its 3D: {spans_text(g, SPANS_SHOWN) or 'none'})")
             for v, (f, g) in enumerate(zip(frames, lifted)) if len(f) or g is not None and len(g)]
     return f"left and right exchanged back on frames {'; '.join(said)}"
 
