@@ -128,7 +128,8 @@ def side_swap_frames(tracks, prior=None) -> np.ndarray:
 
     ``prior``: frames expected exchanged (a lifter's 3D: the frames found in the 2D it was made
     from, whose sides it keeps); then each frame labelled otherwise costs :data:`PRIOR_COST`,
-    and the labelling that holds on most frames is no longer the rule."""
+    the labelling that holds on most frames is no longer the rule, and a clip shorter than four
+    frames keeps the prior's frames."""
     pairs = left_right_pairs(list(tracks.names))
     T = int(tracks.points.shape[0])
     expected = None
