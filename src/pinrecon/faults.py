@@ -138,10 +138,8 @@ def side_swap_frames(tracks, prior=None) -> np.ndarray:
         expected[np.asarray(prior, int)] = 1
     if not pairs:
         return np.zeros(0, int)
-    if T < 4:
-        return np.zeros(0, int) if expected is None else np.flatnonzero(expected)
-    terms = _pair_terms(tracks.points, pairs)
-    if not terms:
+    terms = _pair_terms(tracks.points, pairs) if T >= 4 else []
+    if not terms:  # nothing to judge by: the prior's frames, or none
         return np.zeros(0, int) if expected is None else np.flatnonzero(expected)
     # windows of four frames' labels (bits: frame t-3 .. t); every term ends at the window's last frame
     full = np.array([[(w >> (3 - i)) & 1 for i in range(4)] for w in range(16)])

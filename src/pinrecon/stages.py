@@ -453,16 +453,15 @@ def _yield(run: Run) -> str | None:
             f"{', ...' if len(joints) > 4 else ''}): prior widened and re-centred there, solved again")
 
 
-def _warm(name: str, fn) -> Callable:
-    """A stage that re-solves warm through ``fn(problem, res, options, callback) -> res``."""
+def _warm(name: str, fn, cued: str | None = None) -> Callable:
+    """A stage that re-solves warm through ``fn(problem, res, options, callback) -> res``;
+    ``cued``: what the tracks' own lifted cues decide instead, when the stage is skipped with them."""
 
     def stage(run: Run) -> str | None:
         if name == "mirrors" and not run.mirrors:
             return None
-        if name == "mirrors" and _cued(run):
-            return "skipped: the lifted cues decide the limbs' reflections"
-        if name == "turns" and _cued(run):  # measured: none kept on bench_stages' clips, 15 s on a long video
-            return "skipped: the lifted cues decide the heading through fast turns"
+        if cued is not None and _cued(run):
+            return f"skipped: the lifted cues decide {cued}"
         before = run.res
         run.res = fn(run.problem, run.res, run.options, run.callback)
         return "nothing kept" if run.res is before else "changed (warm re-solve kept)"
@@ -507,8 +506,9 @@ STAGES: dict[str, Callable[[Run], str | None]] = {
     "prior": _prior,
     "yield": _yield,
     # looked up when called, so a diagnostic may observe a stage (bench/diagnose_mirrors.py)
-    "turns": _warm("turns", lambda *a: turn_stage(*a)),
-    "mirrors": _warm("mirrors", lambda *a: mirror_stage(*a)),
+    # with cues: the turns kept nothing on bench_stages' clips and took 15 s on a long video
+    "turns": _warm("turns", lambda *a: turn_stage(*a), cued="the heading through fast turns"),
+    "mirrors": _warm("mirrors", lambda *a: mirror_stage(*a), cued="the limbs' reflections"),
     "faults": _warm("faults", lambda *a: fault_stage(*a)),
     "focal": _focal,
     "feet": _feet,

@@ -72,7 +72,7 @@ class _Plots:
         from ..processes import usable_cpus
 
         self.folder, self.proc, self.seconds, self.t0 = folder, None, None, time.perf_counter()
-        self.going, self._command, self._ended = False, None, None
+        self.going, self._command, self._watcher = False, None, None
         if len(tracks_paths) != 1 or mp.parent_process() is not None or usable_cpus() < 2 \
                 or importlib.util.find_spec("matplotlib") is None:  # no viz extra: said by result()
             return
@@ -109,17 +109,14 @@ class _Plots:
             return
         import threading
 
-        self._ended = threading.Event()
-        threading.Thread(target=self._watch, args=(self.proc, self._ended), name="pinrecon-plots", daemon=True).start()
+        self._watcher = threading.Thread(target=self._watch, name="pinrecon-plots", daemon=True)
+        self._watcher.start()
 
-    def _watch(self, proc, ended) -> None:
+    def _watch(self) -> None:
         """When the process ends (its pictures drawn): :attr:`seconds`, though :meth:`result` is
         called later (after the overlay)."""
-        try:
-            proc.wait()
-        finally:
-            self.seconds = time.perf_counter() - self.t0
-            ended.set()
+        self.proc.wait()
+        self.seconds = time.perf_counter() - self.t0
 
     def stop(self) -> None:
         """Stop the process (the caller failed): before :meth:`go` it ends without drawing;
@@ -144,7 +141,9 @@ class _Plots:
             self.stop()
         if self.proc is not None and self.going:
             out, _ = self.proc.communicate()
-            if self._ended is None or not self._ended.wait(5.0):
+            if self._watcher is not None:
+                self._watcher.join(5.0)
+            if self.seconds is None:
                 self.seconds = time.perf_counter() - self.t0
             if self.proc.returncode == 0:
                 return [Path(line) for line in out.splitlines() if line.strip()]
