@@ -105,16 +105,23 @@ def keep(video: Path, tr: pr.Tracks, seconds: float) -> None:
              seconds=seconds)
 
 
-def command(video: Path, out: Path):
-    """``pinrecon video VIDEO --out OUT --quiet`` in a new Python process: ``(result, tracks,
-    seconds end to end, the detector's seconds)`` as the command wrote and printed them."""
+def run_command(video: Path, out: Path, pattern: str) -> re.Match:
+    """``pinrecon video VIDEO --out OUT --quiet`` in a new Python process, as a user runs it: the
+    match of ``pattern`` in what it printed (a failure, or no match, stops the bench)."""
     code = "import sys; from pinrecon.cli import main; sys.exit(main())"
     done = subprocess.run([sys.executable, "-c", code, "video", str(video), "--out", str(out), "--quiet"],
                           capture_output=True, text=True, check=False, env={**os.environ, "MPLBACKEND": "Agg"})
-    line = re.search(r"pinrecon video: \d+ frames in ([\d.]+) s end to end .*track " + re.escape(video.name)
-                     + r" ([\d.]+) s", done.stdout)
+    line = re.search(pattern, done.stdout)
     if done.returncode or line is None:
         raise SystemExit(f"pinrecon video {video} failed ({done.returncode}):\n{done.stdout[-2000:]}{done.stderr[-2000:]}")
+    return line
+
+
+def command(video: Path, out: Path):
+    """:func:`run_command`: ``(result, tracks, seconds end to end, the detector's seconds)`` as the
+    command wrote and printed them."""
+    line = run_command(video, out, r"pinrecon video: \d+ frames in ([\d.]+) s end to end .*track "
+                       + re.escape(video.name) + r" ([\d.]+) s")
     return load_result(out / "result.npz"), load_tracks(out / "tracks.json"), float(line[1]), float(line[2])
 
 

@@ -23,16 +23,12 @@ import quick
 QUICK = quick.take(["--frames", "200"], cut=False)
 
 import argparse
-import os
-import re
 import resource
-import subprocess
-import sys
 import tempfile
 from pathlib import Path
 
 import numpy as np
-from bench_video import COCO12, TRIAL, truth
+from bench_video import COCO12, TRIAL, run_command, truth
 
 import pinrecon as pr
 from pinrecon import datasets
@@ -40,7 +36,7 @@ from pinrecon.metrics import pa_mpjpe
 from pinrecon.tracks import load_tracks
 from pinrecon.video import require_cv2
 
-PART = re.compile(r"pinrecon video: (\d+) frames in ([\d.]+) s end to end \(([\d.]+) frames/s: (.*)\)")
+PART = r"pinrecon video: (\d+) frames in ([\d.]+) s end to end \(([\d.]+) frames/s: (.*)\)"
 
 
 def played_back_and_forth(n: int, period: int) -> np.ndarray:
@@ -85,13 +81,8 @@ def main(argv=None):
     with tempfile.TemporaryDirectory() as d:
         long_video, out = Path(d) / f"cam{a.cam:02d}_long.mp4", Path(d) / "out"
         order = write_long(video, long_video, a.frames)
-        code = "import sys; from pinrecon.cli import main; sys.exit(main())"
-        done = subprocess.run([sys.executable, "-c", code, "video", str(long_video), "--out", str(out), "--quiet"],
-                              capture_output=True, text=True, check=False, env={**os.environ, "MPLBACKEND": "Agg"})
+        line = run_command(long_video, out, PART)
         rss_mb = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024
-        line = PART.search(done.stdout)
-        if done.returncode or line is None:
-            raise SystemExit(f"pinrecon video failed ({done.returncode}):\n{done.stdout[-2000:]}{done.stderr[-2000:]}")
         res = pr.load_result(out / "result.npz")
         tracks = load_tracks(out / "tracks.json")
     T = int(line[1])
