@@ -141,14 +141,11 @@ def run(clip, case, rows):
 
 def real_trial() -> None:
     """``--real``: the feet stage on Pose2Sim's trial, each camera alone (module docstring)."""
-    import warnings
-
     import bench_stages
     import bench_video
 
     from pinrecon.contact import FootContact, detection_settings
     from pinrecon.floor import Floor
-    from pinrecon.metrics import pa_mpjpe
 
     G = bench_video.truth()  # (T, 12, 3), the calibration's world (Z up)
     names = bench_stages.COCO12
@@ -162,26 +159,19 @@ def real_trial() -> None:
           "floor normal to the calibration's up (deg) | PA-MPJPE with / without the feet stage (mm) |")
     print("|---|---|---:|---:|---:|---:|---:|---:|---|")
     for cam in (1, 2, 3, 4):
-        tracks, size, P_true, true_cam = bench_stages.real_case(cam, True)
-        pa = {}
-        for label, kw in (("with", {}), ("without", {"floor": "none"})):
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")
-                res = pr.reconstruct(pr.Figure.human(), tracks, "auto", image_size=size, **kw)
-            P = bench_stages.in_true_world(res.keypoints3d[:, res.figure.keypoint_index(names)], res.cameras[0],
-                                           true_cam)
-            ok = np.isfinite(P_true).all(axis=(1, 2))
-            pa[label] = pa_mpjpe(P[ok], P_true[ok])
-            if label == "with":
-                fc = FootContact.from_extras(res.extras)
-                found = np.asarray(fc.contact, bool)[:, [list(fc.names).index(n) for n in ankles]]
-                n_cam = np.asarray(res.cameras[0].R, float) @ np.asarray(fc.floor.normal, float)
-                up_cam = np.asarray(true_cam.R, float) @ floor.normal
-                angle = float(np.degrees(np.arccos(min(1.0, abs(float(n_cam @ up_cam)) / np.linalg.norm(n_cam)))))
+        case = bench_stages.real_case(cam, True)
+        true_cam = case[3]
+        pa = {label: bench_stages.run(case, **kw) for label, kw in (("with", {}), ("without", {"floor": "none"}))}
+        res = pa["with"]["result"]
+        fc = FootContact.from_extras(res.extras)
+        found = np.asarray(fc.contact, bool)[:, [list(fc.names).index(n) for n in ankles]]
+        n_cam = np.asarray(res.cameras[0].R, float) @ np.asarray(fc.floor.normal, float)
+        up_cam = np.asarray(true_cam.R, float) @ floor.normal
+        angle = float(np.degrees(np.arccos(min(1.0, abs(float(n_cam @ up_cam)) / np.linalg.norm(n_cam)))))
         tp, fp, fn = int((found & true_c).sum()), int((found & ~true_c).sum()), int((~found & true_c).sum())
         precision = f"{tp / (tp + fp):.2f}" if tp + fp else "-"
         print(f"| cam{cam:02d} | {int(found[:, 0].sum())} / {int(found[:, 1].sum())} | {tp} | {fp} | {fn} | "
-              f"{tp / max(1, tp + fn):.2f} | {precision} | {angle:.1f} | {pa['with']:.1f} / {pa['without']:.1f} |",
+              f"{tp / max(1, tp + fn):.2f} | {precision} | {angle:.1f} | {pa['with']['pa']:.1f} / {pa['without']['pa']:.1f} |",
               flush=True)
 
 

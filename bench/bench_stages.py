@@ -103,7 +103,7 @@ def run(case, **kwargs) -> dict:
     ok = np.isfinite(P_true).all(axis=(1, 2))
     segs = [(COCO12.index(a), COCO12.index(b)) for a, b in SEGMENTS]
     return {"fps": tracks.T / dt, "cpu_fps": tracks.T / cpu, "time": dt, "pa": metrics.pa_mpjpe(P[ok], P_true[ok]),
-            "flips": 100.0 * metrics.flip_rate(P[ok], P_true[ok], cam, segs), "stages": res.stages}
+            "flips": 100.0 * metrics.flip_rate(P[ok], P_true[ok], cam, segs), "stages": res.stages, "result": res}
 
 
 def changed(report) -> bool:
