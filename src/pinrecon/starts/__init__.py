@@ -12,7 +12,7 @@ name            start
 ``"keyframes"`` poses at the keyframes, interpolated, placed on the tracks
 ``"planarity"`` Hoffman-Flinchbaugh planarity seed (:mod:`.planarity`)
 ``"hypotheses"`` limb and trunk reflections enumerated, scored, a path chosen (:mod:`.hypotheses`)
-``"lifted"``    the figure posed on a lifter's bone directions, placed on the tracks (:mod:`.lifted`)
+``"lifted"``    the rest start turned to a lifter's facing, placed on the tracks (:mod:`.lifted`)
 ``"markers"``   poses from 3D markers (:func:`pinrecon.reconstruct_markers`)
 ==============  ============================================================
 

@@ -1,13 +1,17 @@
-"""The lifted start: the figure posed on a lifter's bone directions, placed on the tracks.
+"""The lifted start: the rest start with its trunk turned to a lifter's facing, placed on the tracks.
 
 When the tracks carry a lifter's 3D (:mod:`pinrecon.rows.lifted`), the limbs' depth
 reflections the multi-hypothesis search (:mod:`.hypotheses`) enumerates are the lifter's
-to tell, and one start does: per frame, the figure's own keypoints are chained from the rest
-start's hip along the lifter's unit bone directions (turned into world axes) with the
-figure's own bone lengths, and one batch inverse kinematics (3D targets, joint limits, the
-posture prior; every frame on its own) poses the figure on them; the root is then placed on
-the tracks (:func:`~.rest.place_on_tracks`). The main solve, with the lifted-pose rows and
-their robust loss, decides what the lifter got wrong.
+to tell, in the main solve's lifted-pose rows; the start only has to face the right way. From
+the rest start (:func:`~.rest.rest_start`), the trunk's keypoints are chained from the hip
+along the lifter's unit bone directions of the trunk (turned into world axes) with the
+figure's own bone lengths, and one batch inverse kinematics of the root alone (3D targets,
+joint limits, the posture prior; every frame on its own) turns the trunk onto them; the root
+is then placed on the tracks (:func:`~.rest.place_on_tracks`), and kept only on frames where
+its facing parts from the rest start's by more than :data:`FACING_DEG`. The limbs stay at the
+rest start's: the main solve, with the lifted-pose rows and their robust loss, decides what the
+lifter got wrong (limbs posed on the lifter's bone directions too start real clips in worse
+basins: bench/README.md, bench_stages).
 
 The lifter's axes: ``"camera"`` lifters are read in the camera's axes; for ``"unknown"`` ones
 the rotation to the camera is the one whose first two rows best turn the lifter's bones onto
