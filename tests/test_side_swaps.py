@@ -159,3 +159,13 @@ def test_long_lists_of_frames_are_cut_in_the_summaries():
     assert spans_text(frames, 2) == "3-5, 9, ... (3 ranges, 7 frames in all)"
     assert spans_text(frames, 3) == spans_text(frames)
     assert spans_text([], 2) == ""
+
+
+def test_a_span_of_one_frame_is_said_as_one_frame():
+    """The summaries' spans (a disagreement with the lifter, an unfamiliar pose, frames not
+    observed) say ``frame 93 (1.55 s)`` for one frame, not ``frames 93-93``."""
+    from pinrecon.result import span_text
+
+    assert span_text(93, 94, 60.0) == "frame 93 (1.55 s)"
+    assert span_text(84, 91, 60.0) == "frames 84-90 (1.40-1.50 s)"
+    assert span_text(np.int64(0), np.int64(30), 60.0) == "frames 0-29 (0.00-0.48 s)"

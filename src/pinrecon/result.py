@@ -44,6 +44,15 @@ def spans_text(frames, limit: int | None = None) -> str:
     return ", ".join(text)
 
 
+def span_text(a, b, fps: float) -> str:
+    """The frames ``a`` to ``b - 1`` and their times: ``frames 84-90 (1.40-1.50 s)``, or
+    ``frame 93 (1.55 s)`` for one."""
+    a, b = int(a), int(b)
+    if b - a == 1:
+        return f"frame {a} ({a / fps:.2f} s)"
+    return f"frames {a}-{b - 1} ({a / fps:.2f}-{(b - 1) / fps:.2f} s)"
+
+
 #: ranges of frames a summary line lists at most (the result's extras hold them all)
 SPANS_SHOWN = 12
 
@@ -214,16 +223,14 @@ class Result:
             lines.append(f"limb reflections: {len(spans)} spans over {len(chains)} limbs, {len(unc)} uncertain "
                          f"(the mirror costs less than {thr:g} more: a keyframe there would decide them)")
             for c, a, b, _, gap in unc[np.argsort(unc[:, 4])][:limit]:
-                lines.append(f"  {chains[int(c)]}: frames {int(a)}-{int(b) - 1} ({a / self.fps:.2f}-"
-                             f"{(b - 1) / self.fps:.2f} s), the mirror costs {gap:.1f} more")
+                lines.append(f"  {chains[int(c)]}: {span_text(a, b, self.fps)}, the mirror costs {gap:.1f} more")
             if len(unc) > limit:
                 lines.append(f"  ... and {len(unc) - limit} more")
         for key, who, where in (("hypothesis_turns", "start took", "pinrecon.starts.turns"),
                                 ("solution_turns", "solve had", "pinrecon.starts.turns.turn_stage")):
             wound = np.asarray(x.get(key, np.zeros((0, 4))), float).reshape(-1, 4)
             for a, b, k, gain in wound[wound[:, 2] != 0]:
-                lines.append(f"trunk turned {int(k):+d} whole turn in frames {int(a)}-{int(b) - 1} ({a / self.fps:.2f}-"
-                             f"{(b - 1) / self.fps:.2f} s), cost {gain:.0f} lower (a fast turn the {who} the "
+                lines.append(f"trunk turned {int(k):+d} whole turn in {span_text(a, b, self.fps)}, cost {gain:.0f} lower (a fast turn the {who} the "
                              f"wrong way round; {where})")
         mirrors = np.asarray(x.get("solution_mirrors", np.zeros((0, 5))), float).reshape(-1, 5)
         kept = mirrors[np.isfinite(mirrors[:, 4])]
@@ -233,8 +240,7 @@ class Result:
                          f"cost {float(kept[:, 4].sum()):.0f} lower (pinrecon.starts.mirrors.mirror_stage)")
             for c, _, a, b, gain in kept[np.argsort(-kept[:, 4])][:limit]:
                 name = labels[int(c)] if int(c) < len(labels) else str(int(c))
-                lines.append(f"  {name}: frames {int(a)}-{int(b) - 1} ({a / self.fps:.2f}-{(b - 1) / self.fps:.2f} s), "
-                             f"cost {gain:.0f} lower")
+                lines.append(f"  {name}: {span_text(a, b, self.fps)}, cost {gain:.0f} lower")
             if len(kept) > limit:
                 lines.append(f"  ... and {len(kept) - limit} more")
         labels, ties, tie = mirror_uncertain(x)
@@ -243,8 +249,7 @@ class Result:
                          "uncertain: a keyframe there would decide them (pinrecon.starts.mirrors)")
             for c, a, b, gain in ties[np.argsort(np.abs(ties[:, 3]))][:limit]:
                 name = labels[int(c)] if int(c) < len(labels) else str(int(c))
-                lines.append(f"  {name}: frames {int(a)}-{int(b) - 1} ({a / self.fps:.2f}-{(b - 1) / self.fps:.2f} s), "
-                             f"the mirror costs {abs(gain):.1f} {'less' if gain > 0 else 'more'}")
+                lines.append(f"  {name}: {span_text(a, b, self.fps)}, the mirror costs {abs(gain):.1f} {'less' if gain > 0 else 'more'}")
             if len(ties) > limit:
                 lines.append(f"  ... and {len(ties) - limit} more")
         if "prior_switch_focal_px" in x:
@@ -276,8 +281,7 @@ class Result:
                          "depths there are the "
                          f"prior's extrapolation and may be mirrored{fallback}; 3D keyframes there would decide them")
             for a, b in sp[np.argsort([-d[a:b].max() for a, b in sp])][:limit]:
-                lines.append(f"  frames {a}-{b - 1} ({a / self.fps:.2f}-{(b - 1) / self.fps:.2f} s), "
-                             f"up to {d[a:b].max():.1f} standard deviations")
+                lines.append(f"  {span_text(a, b, self.fps)}, up to {d[a:b].max():.1f} standard deviations")
             if len(sp) > limit:
                 lines.append(f"  ... and {len(sp) - limit} more")
         if "prior_distance" not in x and self.figure is not None:
@@ -615,7 +619,7 @@ def stability_lines(extras, fps: float, limit: int = 6) -> list[str]:
     lines.append(f"  {frames} of {spread.shape[1]} frames differ by more than {thr:g} mm in some copy: the data allow "
                  "more than one answer there, and a 3D keyframe there would decide it")
     for a, b, name, mm, k in sorted(spans, key=lambda r: -r[3])[:limit]:
-        lines.append(f"  frames {a}-{b - 1} ({a / fps:.2f}-{(b - 1) / fps:.2f} s): {k} of {n} copies, most at {name} "
+        lines.append(f"  {span_text(a, b, fps)}: {k} of {n} copies, most at {name} "
                      f"({mm:.0f} mm)")
     if len(spans) > limit:
         lines.append(f"  ... and {len(spans) - limit} more")
@@ -639,8 +643,7 @@ def lifted_lines(extras, fps: float, limit: int = 6) -> list[str]:
              f"frames and {len(names)} bones); {share:.1f} % of the bone-frames disagree by more than {thr:g} degrees "
              "(the image and the other rows outvoted the lifter there)"]
     for b, a, e, m in spans[np.argsort(-(spans[:, 2] - spans[:, 1]))][:limit]:
-        lines.append(f"  {names[int(b)]}: frames {int(a)}-{int(e) - 1} ({a / fps:.2f}-{(e - 1) / fps:.2f} s), "
-                     f"up to {m:.0f} degrees")
+        lines.append(f"  {names[int(b)]}: {span_text(a, e, fps)}, up to {m:.0f} degrees")
     if len(spans) > limit:
         lines.append(f"  ... and {len(spans) - limit} more")
     return lines
@@ -666,7 +669,7 @@ def unobserved_lines(observed, fps: float, limit: int = 6) -> list[str]:
               "motion there is not measured: the smoothing, the joint limits and the pose prior carry it "
               "(result.observed_frames)")]
     for a, b in sorted(spans, key=lambda ab: ab[0] - ab[1])[:limit]:
-        lines.append(f"  frames {a}-{b - 1} ({a / fps:.2f}-{(b - 1) / fps:.2f} s)")
+        lines.append(f"  {span_text(a, b, fps)}")
     if len(spans) > limit:
         lines.append(f"  ... and {len(spans) - limit} more")
     return lines
