@@ -548,6 +548,9 @@ def test_the_detectors_threads_reach_its_graph_and_change_no_landmark(cut, track
     monkeypatch.setenv("PINRECON_DETECTOR_THREADS", "3")
     with MediaPipePose() as pose:
         assert detector_threads() == 3 and pose.threads == 3
+    monkeypatch.setattr("pinrecon.video.mediapipe_pose.usable_cpus", lambda: 2)  # 3 threads on 2 CPUs: 20x slower
+    with pytest.warns(UserWarning, match="PINRECON_DETECTOR_THREADS=3 is more than the 2 CPU"):
+        assert detector_threads() == 2
     for bad in ("0", "two", "-1"):
         monkeypatch.setenv("PINRECON_DETECTOR_THREADS", bad)
         with pytest.raises(pr.InputError, match="PINRECON_DETECTOR_THREADS"):

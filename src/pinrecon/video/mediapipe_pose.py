@@ -130,12 +130,19 @@ def detector_threads(share: int = 1) -> int:
     """The threads MediaPipe's networks run on by default: the CPUs this process may use
     (:func:`~pinrecon.processes.usable_cpus`), divided among ``share`` detectors running at
     once, at least 1 and at most :data:`MAX_DETECTOR_THREADS`; ``PINRECON_DETECTOR_THREADS=N``
-    in the environment sets it (where other processes of the caller's already use the cores)."""
+    in the environment sets it (where other processes of the caller's already use the cores), up
+    to those CPUs: more threads than CPUs wait on each other (with a third thread on two CPUs the
+    detector ran 20 times slower), so a larger count is said and lowered to them."""
     given = os.environ.get("PINRECON_DETECTOR_THREADS", "").strip()
     if given:
         if not given.isdigit() or int(given) < 1:
             raise InputError(f"must be a whole number of threads, at least 1; got {given!r}",
                              field="PINRECON_DETECTOR_THREADS")
+        cpus = usable_cpus()
+        if int(given) > cpus:
+            warnings.warn(f"PINRECON_DETECTOR_THREADS={given} is more than the {cpus} CPU(s) this process may use: "
+                          f"the detector runs on {cpus} (more threads than CPUs wait on each other)", stacklevel=2)
+            return cpus
         return int(given)
     return max(1, min(MAX_DETECTOR_THREADS, usable_cpus() // max(1, int(share))))
 
@@ -283,6 +290,7 @@ def track_video(
             on_frame(t, frame)
         return cv2.cvtColor(frame[y0:y0 + ch, x0:x0 + cw], cv2.COLOR_BGR2RGB)
 
+    threads = detector_threads() if threads is None else threads  # said before MediaPipe's notes are hidden
     with _quiet_native_stderr() as stderr, MediaPipePose(model_complexity, threads=threads) as pose, \
             FrameProgress(total, f"track {name}", enabled=progress, file=stderr) as bar:
         for rgb in iter_frames(path, max_frames, ahead=4, prepare=prepare):
