@@ -376,6 +376,44 @@ def test_overlay_from_the_detectors_frames_is_the_overlay_decoded_again(video_ru
     assert np.array_equal(from_kept, decoded) and np.array_equal(again, decoded)
 
 
+
+def test_plot_draws_the_overlay_of_a_saved_result_and_marks_frames_nothing_was_seen_on(video_run, cut, tmp_path,
+                                                                                    capsys):
+    """``pinrecon plot RESULT --video VIDEO`` writes the overlay ``pinrecon video`` writes, from the
+    saved result (``write_overlay`` takes its path), beside the plots; a frame without a 2D point
+    says so. Ground truth: the same result with frames 3-5 set unobserved, against its overlay
+    with every frame observed: the label's pixels differ in the panels' top rows there only."""
+    from pinrecon.viz.overlay import write_overlay
+
+    _, out, _ = video_run
+    res = pr.load_result(out / "result.npz")
+    assert res.observed_frames.all()
+    res.observed_frames[3:6] = False
+    res.save(tmp_path / "gap.npz")
+    assert main(["plot", str(tmp_path / "gap.npz"), "--out", str(tmp_path / "p"), "--video", str(cut),
+                 "--tracks", str(out / "tracks.json"), "--no-animation"]) == 0
+    written = capsys.readouterr().out.split()
+    assert str(tmp_path / "p" / "overlay.mp4") in written and str(tmp_path / "p" / "joint_angles.png") in written
+    seen = write_overlay(str(out / "result.npz"), cut, tmp_path / "seen.mp4", tracks=pr.load_tracks(out / "tracks.json"))
+
+    def read(path):
+        cap = cv2.VideoCapture(str(path))
+        frames = [cap.read()[1] for _ in range(N)]
+        assert int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) == N
+        return np.array(frames, np.int16)
+
+    band = np.abs(read(tmp_path / "p" / "overlay.mp4") - read(seen))[:, :40].max(axis=-1) > 80  # (N, 40, 1080)
+    left, right = band[..., :540].sum(axis=(1, 2)), band[..., 540:].sum(axis=(1, 2))
+    assert (left[3:6] > 100).all() and (right[3:6] > 30).all()  # "not observed ...", "NOT OBSERVED"
+    assert left[[0, 1, 2, 6, 7, 8, 9]].max() < 20 and right[[0, 1, 2, 6, 7, 8, 9]].max() < 20
+
+    assert main(["plot", str(out / "result.npz"), "--out", str(tmp_path / "q"), "--video", str(cut), str(cut)]) == 2
+    assert "2 video(s) for a result of 1 camera(s)" in capsys.readouterr().err
+    text = tmp_path / "notes.mp4"
+    text.write_text("not a video\n")
+    assert main(["plot", str(out / "result.npz"), "--out", str(tmp_path / "r"), "--video", str(text)]) == 2
+    assert "notes.mp4" in capsys.readouterr().err and not (tmp_path / "r").exists()  # refused before any picture
+
 def test_kept_frames_fill_a_store_mapped_at_once_and_go_on_past_it():
     """The kept frames' memory is mapped in before the first frame (:func:`frame_store`): they are
     OpenCV's scaled frames all the same, frame for frame; a video with more frames than its file

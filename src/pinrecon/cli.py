@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 import warnings
+from pathlib import Path
 
 from .arguments import (
     add_pose_prior_argument,
@@ -16,7 +17,7 @@ from .arguments import (
     weights_kwargs,
 )
 from .commands import SolveProgress
-from .errors import PinreconError
+from .errors import InputError, PinreconError
 
 __all__ = ["main"]
 
@@ -41,8 +42,6 @@ def cmd_reconstruct(args) -> int:
 def _outputs(args):
     """Every file the command will write (``--out``, ``--save-figure`` and its keypoint map,
     ``--save-camera``), checked writable before the work (:class:`pinrecon.io.atomic.Outputs`)."""
-    from pathlib import Path
-
     from .io.atomic import Outputs
 
     outs = Outputs(fields={"--out": args.out, "--save-figure": args.save_figure,
@@ -100,8 +99,6 @@ def cmd_fit_markers(args) -> int:
 def _save_cameras(res, path) -> list[str]:
     """``--save-camera``: the (fitted) camera as a pinrecon camera JSON; with several
     cameras, one file per camera (``<stem>_<name>.json``)."""
-    from pathlib import Path
-
     path = Path(path)
     if len(res.cameras) <= 1:
         res.camera.save(path)
@@ -165,6 +162,7 @@ def cmd_plot(args) -> int:
     outs = Outputs()
     outs.add_folder(args.out, field="--out")
     outs.check()
+    overlays = _overlay_videos(args)  # every video readable before any drawing
     with outs.commit():
         files = plot_result(
             args.result,
@@ -176,9 +174,41 @@ def cmd_plot(args) -> int:
             truth_skip_frames=args.truth_skip_frames,
             tracks_fps=args.fps,
         )
+        if overlays:
+            from .result import load_result
+            from .tracks import load_tracks
+            from .viz.overlay import write_overlay
+
+            res = load_result(args.result)
+            tracks = load_tracks(args.tracks, fps=args.fps) if args.tracks and len(overlays) == 1 else None
+            files += [write_overlay(res, v, Path(args.out) / name, camera_index=i, tracks=tracks)
+                      for i, (v, name) in enumerate(overlays)]
     for f in files:
         print(f)
     return 0
+
+
+def _overlay_videos(args) -> list[tuple[str, str]]:
+    """``pinrecon plot --video``: ``(video, overlay file name)`` per video, in the result's camera
+    order, each video checked readable (the optional video extra); none without ``--video``."""
+    if not args.video:
+        return []
+    from .result import load_result
+    from .video import video_info
+
+    res = load_result(args.result)
+    cams = [c for c in (res.cameras or [res.camera]) if c is not None]
+    if len(args.video) > len(cams):
+        raise InputError(f"{len(args.video)} video(s) for a result of {len(cams)} camera(s): give one per camera, "
+                         "in the result's camera order", field="--video")
+    for v in args.video:
+        video_info(v)
+    stems = [Path(v).stem for v in args.video]
+    if len(args.video) == 1:
+        return [(args.video[0], "overlay.mp4")]
+    if len(set(stems)) != len(stems):
+        stems = [f"{i + 1}_{s}" for i, s in enumerate(stems)]
+    return [(v, f"overlay_{s}.mp4") for v, s in zip(args.video, stems)]
 
 
 def cmd_export(args) -> int:
@@ -281,6 +311,10 @@ def build_parser() -> argparse.ArgumentParser:
     pl.add_argument("--tracks", help="the 2D tracks, to draw the reprojection over them")
     pl.add_argument("--no-animation", action="store_true", help="skip the GIF")
     pl.add_argument("--fps", type=float, help="frame rate of --tracks that carry none (OpenPose folder, COCO JSON)")
+    pl.add_argument("--video", nargs="+", metavar="VIDEO",
+                    help="the video(s) the result was made from (one per camera, in the result's order): also write "
+                    "the overlay video, the skeleton over its frames and a side view (overlay.mp4; the optional video "
+                    "extra), with --tracks drawn as rings")
     pl.set_defaults(func=cmd_plot)
 
     e = sub.add_parser("export", help="export a result NPZ as BVH, CSV and/or TRC")

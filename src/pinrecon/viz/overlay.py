@@ -163,8 +163,14 @@ def write_overlay(
     detector read it (the same sizes); used
     instead of decoding the video again when it holds every frame drawn. Returns the path written
     (atomically); the file holds one frame per input frame, ``2 W x H`` pixels after scaling.
+    A frame the result saw no 2D point on (``result.observed_frames``: its motion carried by the
+    smoothing, the limits and the prior) says so in both panels.
     """
     cv2 = require_cv2()
+    if isinstance(result, (str, os.PathLike)):
+        from ..result import load_result
+
+        result = load_result(result)
     motion = as_motion(result)
     cams = list(getattr(result, "cameras", None) or [getattr(result, "camera", None)])
     if not 0 <= camera_index < len(cams) or cams[camera_index] is None:
@@ -185,6 +191,8 @@ def write_overlay(
     zoom = 0.85 * min(W, H) / span
     uv_side = (uv_side - (lo + hi) / 2) * zoom + [W / 2, H / 2]
     colours = [LEFT_BGR if c == "L" else RIGHT_BGR if c == "R" else CENTRE_BGR for c in sk.side]
+    seen = getattr(result, "observed_frames", None)
+    seen = np.ones(len(motion.times), bool) if seen is None or len(seen) != len(motion.times) else np.asarray(seen)
     thick = max(2, round(H / 240))
     radius = max(3, round(H / 160))
     det = None
@@ -229,9 +237,12 @@ def write_overlay(
                     draw(left, uv_cam[f])
                     np.copyto(right, blank)
                     draw(right, uv_side[f])
-                    label = f"side view  t={motion.times[f]:.2f}s"
+                    label = f"side view  t={motion.times[f]:.2f}s" + ("" if seen[f] else "  NOT OBSERVED")
                     cv2.putText(right, label, (10, 10 + 2 * radius + 10), cv2.FONT_HERSHEY_SIMPLEX,
                                 max(0.4, H / 1600), (230, 230, 230), 1, cv2.LINE_AA)
+                    if not seen[f]:  # no 2D point: the motion here is the solve's guess
+                        cv2.putText(left, "not observed: the motion is carried by the smoothing", (10, 10 + 2 * radius + 10),
+                                    cv2.FONT_HERSHEY_SIMPLEX, max(0.4, H / 1600), (230, 230, 230), 1, cv2.LINE_AA)
                     writer.write(np.concatenate([left, right], axis=1, out=canvas))
                     bar.update()
         finally:
