@@ -493,6 +493,12 @@ def test_bad_input_is_one_clear_error(cut, tmp_path, capsys):
 
     assert main(["video", str(cut), str(cut), "--out", str(tmp_path / "o2")]) == 2
     assert "--calibration" in capsys.readouterr().err
+    t0 = time.perf_counter()
+    calib = str(data_file("pose2sim-balancing/calibration/Calib_qualisys.toml"))
+    assert main(["video", str(cut), str(cut), "--calibration", calib, "--out", str(tmp_path / "o4")]) == 2
+    err = capsys.readouterr().err  # four cameras for two videos: said before the detector, nothing written
+    assert "'--calibration': 2 videos but the calibration holds 4 cameras" in err and "--camera-name" in err
+    assert time.perf_counter() - t0 < 3.0 and not (tmp_path / "o4").exists()
     assert main(["video", str(cut), "--out", str(tmp_path / "o3"), "--overlay-height", "0"]) == 2
     assert "--overlay-height" in capsys.readouterr().err and not (tmp_path / "o3").exists()
 

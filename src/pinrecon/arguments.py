@@ -208,10 +208,11 @@ def figure_from_args(args, tracks=None):
     return fig
 
 
-def cameras_for_tracks(camera_files, tracks_files, names=None):
+def cameras_for_tracks(camera_files, tracks_files, names=None, *, given: str = "--tracks", field: str = "--camera"):
     """The cameras of every ``--camera`` file, in order (a file's cameras in the file's
     order), or those called ``names`` (``--camera-name``) in that order, one per ``--tracks``;
-    a mismatch is one clear error listing them."""
+    a mismatch is one clear error listing them (``given``: what the caller calls the inputs,
+    ``field``: the option it names)."""
     from .errors import InputError, UnknownNameError
     from .io.calibration import load_cameras
 
@@ -224,10 +225,13 @@ def cameras_for_tracks(camera_files, tracks_files, names=None):
         cams = [by_name[n] for n in names]
     if len(cams) != len(tracks_files):
         listed = ", ".join(f"{c.name!r}" for c in cams)
+        one = "--tracks" if given == "--tracks" else given.rstrip("s")
+        pick = "" if names else " (or name the cameras they were filmed by: --camera-name)"
         raise InputError(
-            f"{len(tracks_files)} --tracks but the --camera files hold {len(cams)} cameras ({listed}): give one "
-            "--tracks per camera, in this order",
-            field="--camera",
+            f"{len(tracks_files)} {given} but the {'calibration holds' if field == '--calibration' else '--camera files hold'} "
+            f"{len(cams)} cameras ({listed}): give one "
+            f"{one} per camera, in this order{pick}",
+            field=field,
         )
     return cams
 

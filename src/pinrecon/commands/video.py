@@ -201,6 +201,11 @@ def run_video(args, tracked=None) -> dict:
         raise InputError("--crop is one video's (its frame's pixels): give it with one video", field="--crop")
     for info in infos:
         crop_box(args.crop, info, field="--crop")
+    if not auto:  # as many cameras as videos before any work
+        from ..arguments import cameras_for_tracks
+
+        cameras_for_tracks(args.camera, args.videos, args.camera_name, given="videos",
+                           field="--calibration" if args.calibration else "--camera")
     out = check_writable(args.out, folder=True)
     files = _outputs(out, args.videos)
     stages: dict[str, float] = {}
