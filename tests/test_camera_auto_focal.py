@@ -332,3 +332,37 @@ def test_a_focal_length_no_lens_has_is_said():
     msg = implausible_focal(239.0, (1920, 1080))
     assert "239 px, 0.11 image diagonals" in msg and "156 degrees" in msg and "--fov" in msg
     assert "longer than a telephoto" in implausible_focal(20000.0, (1920, 1080))
+
+
+def test_a_long_clip_is_profiled_on_its_stretch_nearest_the_camera_and_moved_whole(focal_inputs, monkeypatch):
+    """``settle_focal(profile_frames=n)`` (the cue path's focal stage on clips longer than
+    ``stages.FOCAL_PROFILE_FRAMES``): the profile's solves run on a stretch of ``n`` frames, the
+    one where the subject's depth changes most, and the move on the whole clip. Ground truth:
+    the short walk's true root depths (it walks from the camera at a steady pace, 2.5 -> 4.5 m:
+    the ratio over 30 frames is largest on the half nearest the camera); and the whole clip's own
+    profile, whose valley the stretch must find too (the same move, within 10 %)."""
+    from pinrecon import solver
+    from pinrecon.starts.camera_auto import fitted_focal, settle_focal
+
+    fig, Q = human_walk(60, 30.0)
+    z = perspective_side_camera(Q, 60.0, distance_m=3.5, f_px=F_TRUE, center=(640.0, 360.0)).depth(Q[:, :3])
+    near = [0, 30] if z[:30].max() / z[:30].min() > z[30:].max() / z[30:].min() else [30, 60]
+    problem, res0, auto = focal_inputs
+    lengths, real = [], solver.solve
+    monkeypatch.setattr(solver, "solve", lambda problem, *a, **k: lengths.append(problem.n_frames) or real(
+        problem, *a, **k))
+    monkeypatch.setattr("pinrecon.starts.camera_auto.forkable", lambda *a: False)  # every solve here, where it is seen
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        whole, _ = settle_focal(problem, res0, auto, rounds=1, final_profile=False)
+        lengths.clear()
+        part, a = settle_focal(problem, res0, auto, rounds=1, final_profile=False, profile_frames=30)
+    assert z[0] < 2.8 < 4.2 < z[-1] and near == [0, 30]  # the walk as its docstring says
+    assert problem.n_frames == 60 and a["focal"]["frames"] == near
+    assert "along frames 0-29, where the profile was taken" in a["focal"]["message"] or a["focal"]["determined"]
+    assert lengths == [30] * 7 + [60, 30]  # the stretch solved, profiled (6), the whole moved, the stretch again
+    assert part is not res0 and whole is not res0  # both moved down the valley
+    f_whole, f_part = fitted_focal(problem, whole), fitted_focal(problem, part)
+    assert f_part == pytest.approx(f_whole, rel=0.10)
+    assert a["focal"]["focal_px"] == pytest.approx(f_part)
+    assert settle_focal(problem, res0, auto, rounds=0, profile_frames=60)[1]["focal"].get("frames") is None

@@ -90,3 +90,23 @@ def test_a_crop_without_keyframes_in_its_range_solves():
     assert "keyframe_points" not in names and "keyframe_joints" not in names and "measurement" in names
     res = solve(sub, X[21:33], SolverOptions(max_iterations=5), active=sub.active, g0=sub.g0)
     assert res.x.shape == X[21:33].shape and res.cost < res.initial_cost
+
+
+def test_lifted_rows_of_an_estimated_rotation_are_cropped_with_the_whole_clips_rotation_held():
+    """Given the whole clip's state, the lifter's rows whose axes the solve estimates from every
+    frame are cropped with that rotation held: the cropped rows are the whole problem's in
+    range, residual for residual (its own evaluation, with the rotation it estimates, is the
+    reference)."""
+    _, problem, X = _case("unknown")
+    g = problem.g0 + 0.05
+    lo, hi = 9, 31
+    sub = problem.cropped(lo, hi, problem.state(X, False, g=g))
+    row = next(r for r in problem.rows if type(r).__name__ == "LiftedPose")
+    held = next(r for r in sub.rows if type(r).__name__ == "LiftedPose")
+    assert row.R_fixed is None and held.R_fixed is not None
+    np.testing.assert_allclose(held.R_fixed, row.rotation(problem.state(X, False, g=g)), atol=1e-12)
+    full = next(b for b in flatten_blocks(problem.evaluate(X, True, g)) if b.name == "lifted")
+    crop = next(b for b in flatten_blocks(sub.evaluate(X[lo:hi], True, g)) if b.name == "lifted")
+    inside = np.all((full.frames >= lo) & (full.frames < hi), axis=1)
+    np.testing.assert_allclose(crop.r, full.r[inside], rtol=0, atol=1e-12)
+    assert problem.cropped(lo, hi) is None  # without the state: refused, as before

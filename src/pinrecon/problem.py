@@ -307,17 +307,19 @@ class ReconstructionProblem:
         new.reports = self.reports
         return new
 
-    def cropped(self, lo: int, hi: int) -> ReconstructionProblem | None:
+    def cropped(self, lo: int, hi: int, state: State | None = None) -> ReconstructionProblem | None:
         """The problem of frames ``lo .. hi - 1`` alone (``hi - lo`` frames, the same globals):
         every row kind's :meth:`~pinrecon.rows.base.RowKind.crop`, frames shifted to start at 0,
         row groups reaching outside the range (the smoothing across its ends) left out; a view's
         tracks cut to the range (``None`` when its frame step is not 1), no keyframes (for a
-        solve, not a start). ``None`` when a row kind cannot be cropped (e.g. lifted rows whose
-        rotation is estimated from the whole clip)."""
+        solve, not a start). ``None`` when a row kind cannot be cropped (lifted rows whose
+        rotation is estimated from the whole clip), unless ``state`` (:meth:`state` of the whole
+        clip) is given: such rows are then cropped with that rotation held (``crop_at``)."""
         lo, hi = int(lo), int(hi)
         if not 0 <= lo < hi <= self.n_frames:
             raise InputError(f"frames {lo}..{hi - 1} are not within the problem's {self.n_frames}", field="frames")
-        new_of = {id(r): r.crop(lo, hi) for r in self.rows}
+        new_of = {id(r): r.crop_at(lo, hi, state) if state is not None and hasattr(r, "crop_at") else r.crop(lo, hi)
+                  for r in self.rows}
         if any(c is None for c in new_of.values()):
             return None
         views = [replace(v, measurement=new_of.get(id(v.measurement), v.measurement),

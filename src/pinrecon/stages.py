@@ -34,8 +34,9 @@ changed). A stage that has nothing to do returns ``None`` and is reported as ski
            skipped when the tracks carry a lifter's 3D
 ``faults`` left/right swaps of the detector repaired (warm re-solve), outliers reported
 ``focal``  an auto camera's focal length carried down its cost valley (with a lifter's 3D, its
-           solves at most :data:`FOCAL_ITERATIONS_LIFTED` iterations each, and
-           :data:`FOCAL_ROUNDS_LIFTED` move; the profile's longer focal lengths solved beside)
+           solves at most :data:`FOCAL_ITERATIONS_LIFTED` iterations each,
+           :data:`FOCAL_ROUNDS_LIFTED` move, a long clip profiled on a stretch of
+           :data:`FOCAL_PROFILE_FRAMES`; the profile's longer focal lengths solved beside)
 ``feet``   feet on the ground: floor and contact rows, solved again warm
 =========  ======================================================================================
 
@@ -99,6 +100,10 @@ FOCAL_ROUNDS_LIFTED = 1
 #: -> 2613 px) and lost 1.5-1.9 mm (bench_stages); the synthetic dances' first 100 frames move
 #: down (1682 -> 924, 1588 -> 1178 px), as before
 FOCAL_PLAUSIBLE = (0.3, 1.0)
+#: with lifted cues, a clip longer than this many frames has its focal length profiled on the
+#: stretch of this many where the subject's depth changes most, and moved on the whole clip
+#: (:func:`~pinrecon.starts.camera_auto.profile_stretch`; bench_video_long)
+FOCAL_PROFILE_FRAMES = 600
 
 __all__ = ["STAGES", "Run", "StageReport", "check_skip", "relabel_inputs", "relabel_spans", "run_stages"]
 
@@ -477,7 +482,7 @@ def _focal(run: Run) -> str | None:
     options, rounds = run.options, {}
     if _cued(run):  # the lifted cues hold the poses: a few steps settle each point of the valley
         options = replace(options or SolverOptions(), max_iterations=FOCAL_ITERATIONS_LIFTED)
-        rounds = {"rounds": FOCAL_ROUNDS_LIFTED, "final_profile": False}
+        rounds = {"rounds": FOCAL_ROUNDS_LIFTED, "final_profile": False, "profile_frames": FOCAL_PROFILE_FRAMES}
     span = None
     if _cued(run) and run.auto.get("image_size"):  # a profile that is no valley moves only to plausible lengths
         span = tuple(f * float(np.hypot(*run.auto["image_size"])) for f in FOCAL_PLAUSIBLE)

@@ -44,6 +44,8 @@ global unknowns the same projection of ``dp_b/dg - dp_a/dg``.
 
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 
 from .base import RowBlock, RowKind, State, crop_aligned, supported_columns
@@ -147,6 +149,13 @@ class LiftedPose(RowKind):
         if self.R_fixed is None:
             return None
         return crop_aligned(self, lo, hi, ("observed", "L", "w"))
+
+    def crop_at(self, lo: int, hi: int, state: State) -> LiftedPose:
+        """:meth:`crop` with the rotation held at the one the whole clip's ``state`` gives (an
+        estimated rotation is the whole clip's: a part of the clip alone would estimate its own)."""
+        held = copy.copy(self)
+        held.R_fixed = self.rotation(state)
+        return crop_aligned(held, lo, hi, ("observed", "L", "w"))
 
     def swap_sides(self, frames, perm) -> None:
         """Exchange the lifter's left and right labels at the reconstruction frames

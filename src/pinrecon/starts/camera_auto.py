@@ -299,6 +299,9 @@ class FocalReport:
     #: with ``"excludes_fit": True``, the interval is theirs and the focal length not determined
     #: (the solve's profile valley is the pose prior's, :func:`doubt_focal`)
     keyframes: dict | None = None
+    #: ``(lo, hi)``: the profile was taken on frames ``lo .. hi - 1`` alone (a long clip's
+    #: stretch, :func:`settle_focal`'s ``profile_frames``), None: on the whole clip
+    frames: tuple | None = None
 
     def message(self) -> str:
         lo, hi = self.interval_px
@@ -322,7 +325,9 @@ class FocalReport:
                     "they put it. Give a calibrated camera (--camera FILE) or point keyframes on more frames")
         costs = [c for _, c in self.profile]
         low_f = self.profile[int(np.argmin(costs))][0]
-        tail = (f"; the subject's depth changes by a factor {self.depth_ratio:.2f} along the clip"
+        along = "the clip" if self.frames is None else \
+            f"frames {self.frames[0]}-{self.frames[1] - 1}, where the profile was taken (a long clip's stretch)"
+        tail = (f"; the subject's depth changes by a factor {self.depth_ratio:.2f} along {along}"
                 + (" (hardly at all: nothing ties f to the depths)" if self.depth_ratio < 1.1 else ""))
         if self.determined:
             return (f"focal length {self.focal_px:.0f} px (started at {self.start_px:.0f} px), "
@@ -340,7 +345,8 @@ class FocalReport:
                 "interval_px": [float(v) for v in self.interval_px], "bounded": [bool(b) for b in self.bounded],
                 "depth_ratio": self.depth_ratio, "determined": self.determined, "tolerance": self.tolerance,
                 "threshold": self.threshold, "message": self.message(),
-                **({"keyframes": self.keyframes} if self.keyframes is not None else {})}
+                **({"keyframes": self.keyframes} if self.keyframes is not None else {}),
+                **({"frames": [int(f) for f in self.frames]} if self.frames is not None else {})}
 
 
 def stretch_depth(Q, camera, k: float) -> np.ndarray:
@@ -417,6 +423,34 @@ def _profile_solves(problem, res, steps, options):
     with Beside(_profile_side, problem, res, intr, g_fit, steps, options, 1.0, fork=forkable(problem.n_frames)) as longer:
         shorter = _profile_side(problem, res, intr, g_fit, steps, options, -1.0)
         return first + longer.result() + shorter
+
+
+def profile_stretch(problem, res, n: int | None, options=None, frames: tuple | None = None):
+    """``(problem, solve, (lo, hi))`` of a long clip's stretch of ``n`` frames for the focal
+    length's profile: the frames ``lo .. hi - 1`` (``frames``, or those where the root's depth
+    from the camera changes most, by its largest over smallest depth), cropped with every
+    estimated lifter rotation held at the whole clip's (:meth:`~pinrecon.problem.
+    ReconstructionProblem.cropped`) and solved from the clip's solution there. None for a clip
+    of at most ``n`` frames, with keyframes (they place the camera over the whole clip), or
+    when the stretch cannot be cropped."""
+    from ..solver import solve
+
+    T, of = problem.n_frames, _focal_of(problem, res)
+    if n is None or T <= n or of is None or len(getattr(problem, "keyframes", None) or ()):
+        return None
+    intr, g_fit = of
+    if frames is None:
+        z = intr.camera(g_fit).depth(np.asarray(res.x, float)[:, :3])
+        z = np.where(z > 1e-6, z, np.nan)
+        starts = sorted({*range(0, T - n + 1, max(1, n // 4)), T - n})
+        spread = [np.nanmax(z[a:a + n]) / np.nanmin(z[a:a + n]) if np.isfinite(z[a:a + n]).any() else 0.0
+                  for a in starts]
+        frames = (starts[int(np.argmax(spread))], starts[int(np.argmax(spread))] + n)
+    lo, hi = frames
+    part = problem.cropped(lo, hi, problem.state(res.x, False, g=g_fit))
+    if part is None:
+        return None
+    return part, solve(part, np.asarray(res.x, float)[lo:hi], options, active=part.active, g0=g_fit), (lo, hi)
 
 
 def _profile_side(problem, res, intr, g_fit, steps, options, sign: float):
@@ -544,7 +578,7 @@ def check_focal(problem, res, auto: dict | None, **kw) -> dict | None:
 def settle_focal(problem, res, auto: dict | None, *, options=None, rounds: int = 3, min_gain: float = 0.5,
                  steps: Sequence[float] = PROFILE_STEPS, tolerance: float = 0.1,
                  threshold: float = PROFILE_THRESHOLD, undetermined_range: tuple[float, float] | None = None,
-                 final_profile: bool = True):
+                 final_profile: bool = True, profile_frames: int | None = None):
     """``(res, auto)``: the solve carried to the bottom of its focal length's cost profile,
     and :func:`check_focal`'s description of it.
 
@@ -561,28 +595,40 @@ def settle_focal(problem, res, auto: dict | None, *, options=None, rounds: int =
     ``final_profile`` False: after the last move the report is made from the profile points
     already solved and the moved solve, instead of profiling again around it (the same
     function of the focal length, sampled less densely there: it says "determined" only
-    where those points show the valley)."""
+    where those points show the valley). ``profile_frames``: a clip longer than that is profiled
+    on its stretch of that many frames where the subject's depth changes most
+    (:func:`profile_stretch`), the move solved on the whole clip (the report says which frames)."""
     if not auto or auto.get("projection") != "perspective":
         return res, auto
     from ..solver import solve
 
-    solves = _profile_solves(problem, res, steps, options)
+    part, part_res, frames = profile_stretch(problem, res, profile_frames, options) or (problem, res, None)
+    solves = _profile_solves(part, part_res, steps, options)
     if solves is None:
         return res, auto
     lo, hi = 0.0, np.inf
-    if undetermined_range is not None and not _report(problem, res, solves, threshold, tolerance).determined:
+    if undetermined_range is not None and not _report(part, part_res, solves, threshold, tolerance).determined:
         lo, hi = undetermined_range
     for k in range(rounds):
-        _, cost, Q, g = min([x for x in solves if lo <= x[0] <= hi] or solves[:1], key=lambda s: s[1])
-        if cost >= res.cost - min_gain:
+        f, cost, Q, g = min([x for x in solves if lo <= x[0] <= hi] or solves[:1], key=lambda s: s[1])
+        if cost >= part_res.cost - min_gain:
             break
-        res = solve(problem, Q, options, active=problem.active, g0=g)
-        if k == rounds - 1 and not final_profile:
+        if frames is not None:  # the whole clip carried to that focal length
             intr, g_fit = _focal_of(problem, res)
-            solves = [(intr.value(g_fit), float(res.cost), np.asarray(res.x, float), g_fit), *solves]
+            Q = stretch_depth(res.x, intr.camera(g_fit), f / intr.value(g_fit))
+            g = np.where(np.arange(len(g_fit)) == intr.col, g[intr.col], g_fit)
+        res = solve(problem, Q, options, active=problem.active, g0=g)
+        part, part_res = (problem, res) if frames is None else \
+            profile_stretch(problem, res, profile_frames, options, frames)[:2]
+        if k == rounds - 1 and not final_profile:
+            intr, g_fit = _focal_of(part, part_res)
+            solves = [(intr.value(g_fit), float(part_res.cost), np.asarray(part_res.x, float), g_fit), *solves]
         else:
-            solves = _profile_solves(problem, res, steps, options)
-    rep = _report(problem, res, solves, threshold, tolerance)
+            solves = _profile_solves(part, part_res, steps, options)
+    rep = _report(part, part_res, solves, threshold, tolerance)
+    if frames is not None:  # the whole clip's focal length; its profile the stretch's
+        intr, g_fit = _focal_of(problem, res)
+        rep = dataclasses.replace(rep, focal_px=float(intr.value(g_fit)), frames=tuple(int(v) for v in frames))
     kf = auto.get("keyframe_focal")
     placed = _focal_of(problem, res)[0].pose_col is None  # held where the keyframes put it, not refined
     if kf is not None and placed and rep.determined:  # the camera's placement by the keyframes is uncertain too
