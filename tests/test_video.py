@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import signal
 import sys
+import threading
 import time
 import warnings
 from pathlib import Path
@@ -413,6 +414,38 @@ def test_plot_draws_the_overlay_of_a_saved_result_and_marks_frames_nothing_was_s
     text.write_text("not a video\n")
     assert main(["plot", str(out / "result.npz"), "--out", str(tmp_path / "r"), "--video", str(text)]) == 2
     assert "notes.mp4" in capsys.readouterr().err and not (tmp_path / "r").exists()  # refused before any picture
+
+
+def test_an_encoder_that_fails_midway_stops_the_overlay_and_leaves_no_file(video_run, cut, tmp_path, monkeypatch):
+    """The overlay's frames are encoded in a thread of their own beside the drawing: an encoder
+    failing at its fourth frame is raised in the caller (not lost in the thread, nor a hang), and
+    the half-written video is removed."""
+    from pinrecon.viz import overlay as overlay_module
+
+    real, written = cv2.VideoWriter, []
+
+    class Failing:
+        def __init__(self, *a):
+            self.inner = real(*a)
+
+        def isOpened(self):
+            return self.inner.isOpened()
+
+        def write(self, frame):
+            written.append(frame.copy())
+            if len(written) == 4:
+                raise OSError("No space left on device")
+            self.inner.write(frame)
+
+        def release(self):
+            self.inner.release()
+
+    monkeypatch.setattr(cv2, "VideoWriter", Failing)
+    res = pr.load_result(video_run[1] / "result.npz")
+    with pytest.raises(OSError, match="No space left"):
+        overlay_module.write_overlay(res, cut, tmp_path / "o.mp4")
+    assert len(written) == 4 and not list(tmp_path.iterdir())
+    assert not any(t.name == "pinrecon-overlay-encoder" for t in threading.enumerate())
 
 def test_kept_frames_fill_a_store_mapped_at_once_and_go_on_past_it():
     """The kept frames' memory is mapped in before the first frame (:func:`frame_store`): they are

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import mmap
 import os
+import queue
 import threading
 from pathlib import Path
 
@@ -137,6 +138,58 @@ def frame_store(n: int, height: int, width: int) -> np.ndarray:
     return np.frombuffer(m, np.uint8).reshape(n, height, width, 3)
 
 
+class _Encoder:
+    """OpenCV's ``VideoWriter`` (``mp4v``) at ``path``, fed from a thread of its own: :meth:`write`
+    hands a frame over (a few may wait) and returns, so the encoding, which lets go of the GIL,
+    runs beside the caller's decoding and drawing; each frame is written from one of a few
+    buffers (:meth:`canvas`) the caller fills and does not touch again. Leaving the block waits
+    for every frame and releases the writer, raising what the thread raised (a refused file:
+    :class:`~pinrecon.errors.InputError` naming ``named``)."""
+
+    AHEAD = 4
+
+    def __init__(self, cv2, path, fps: float, size: tuple[int, int], named):
+        self.writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), fps, size)
+        if not self.writer.isOpened():
+            raise InputError("OpenCV cannot write an MPEG-4 video there", file=named)
+        W, H = size
+        self.todo: queue.Queue = queue.Queue(maxsize=self.AHEAD)
+        self.free: queue.Queue = queue.Queue()
+        for _ in range(self.AHEAD + 2):
+            self.free.put(np.empty((H, W, 3), np.uint8))
+        self.failed: BaseException | None = None
+        self.thread = threading.Thread(target=self._run, name="pinrecon-overlay-encoder", daemon=True)
+        self.thread.start()
+
+    def _run(self) -> None:
+        while (frame := self.todo.get()) is not None:
+            if self.failed is None:
+                try:
+                    self.writer.write(frame)
+                except BaseException as exc:  # noqa: BLE001 - raised again in the caller's thread
+                    self.failed = exc
+            self.free.put(frame)
+
+    def canvas(self) -> np.ndarray:
+        """A buffer to draw the next frame into (once the thread is done with it)."""
+        if self.failed is not None:
+            raise self.failed
+        return self.free.get()
+
+    def write(self, frame: np.ndarray) -> None:
+        self.todo.put(frame)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.todo.put(None)
+        self.thread.join()
+        self.writer.release()
+        if self.failed is not None and exc[0] is None:
+            raise self.failed
+
+
 def write_overlay(
     result,
     video: str | os.PathLike,
@@ -216,35 +269,33 @@ def write_overlay(
     if info.frames:
         n_frames = min(n_frames, info.frames)
     blank = np.full((H, W, 3), PANEL_BGR, np.uint8)  # copied whole: a fill by a colour triple costs 2 ms a frame
-    right = np.empty((H, W, 3), np.uint8)  # the side panel and the written frame, reused frame after frame
-    canvas = np.empty((H, 2 * W, 3), np.uint8)
+    right = np.empty((H, W, 3), np.uint8)  # the side panel, reused frame after frame
     kept = frames.frames if frames is not None and frames.size == (W, H) else None
-    source = kept[:n_frames] if kept is not None and len(kept) >= n_frames else iter_frames(video, n_frames, ahead=4)
-    with atomic_path(out_path) as tmp:
-        writer = cv2.VideoWriter(str(tmp), cv2.VideoWriter_fourcc(*"mp4v"), info.fps, (2 * W, H))
-        if not writer.isOpened():
-            raise InputError("OpenCV cannot write an MPEG-4 video there", file=out_path)
-        try:
-            with FrameProgress(n_frames, f"overlay {out_path.name}", enabled=progress) as bar:
-                for t, frame in enumerate(source):
-                    f = motion.frame_at(t / info.fps)
-                    left = cv2.resize(frame, (W, H), interpolation=cv2.INTER_AREA) if (W, H) != frame.shape[1::-1] \
-                        else frame.copy()
-                    if det is not None and t < len(det):
-                        for k in np.flatnonzero(det_ok[t]):
-                            cv2.circle(left, tuple(np.round(det[t, k]).astype(int)), radius + 2, DETECTION_BGR, 1,
-                                       cv2.LINE_AA)
-                    draw(left, uv_cam[f])
-                    np.copyto(right, blank)
-                    draw(right, uv_side[f])
-                    label = f"side view  t={motion.times[f]:.2f}s" + ("" if seen[f] else "  NOT OBSERVED")
-                    cv2.putText(right, label, (10, 10 + 2 * radius + 10), cv2.FONT_HERSHEY_SIMPLEX,
-                                max(0.4, H / 1600), (230, 230, 230), 1, cv2.LINE_AA)
-                    if not seen[f]:  # no 2D point: the motion here is the solve's guess
-                        cv2.putText(left, "not observed: the motion is carried by the smoothing", (10, 10 + 2 * radius + 10),
-                                    cv2.FONT_HERSHEY_SIMPLEX, max(0.4, H / 1600), (230, 230, 230), 1, cv2.LINE_AA)
-                    writer.write(np.concatenate([left, right], axis=1, out=canvas))
-                    bar.update()
-        finally:
-            writer.release()
+    if kept is not None and len(kept) >= n_frames:
+        source, owned = kept[:n_frames], False  # kept for others too: drawn on a copy
+    else:  # decoded again and scaled in the decoding thread: frames of their own
+        scale = (W, H) != (info.width, info.height)
+        source = iter_frames(video, n_frames, ahead=4, prepare=(lambda t, frame: cv2.resize(
+            frame, (W, H), interpolation=cv2.INTER_AREA)) if scale else None)
+        owned = scale
+    with atomic_path(out_path) as tmp, _Encoder(cv2, tmp, info.fps, (2 * W, H), out_path) as encoder, \
+            FrameProgress(n_frames, f"overlay {out_path.name}", enabled=progress) as bar:
+        for t, frame in enumerate(source):
+            f = motion.frame_at(t / info.fps)
+            left = frame if owned and frame.shape[1::-1] == (W, H) else \
+                cv2.resize(frame, (W, H), interpolation=cv2.INTER_AREA) if frame.shape[1::-1] != (W, H) else frame.copy()
+            if det is not None and t < len(det):
+                for k in np.flatnonzero(det_ok[t]):
+                    cv2.circle(left, tuple(np.round(det[t, k]).astype(int)), radius + 2, DETECTION_BGR, 1, cv2.LINE_AA)
+            draw(left, uv_cam[f])
+            np.copyto(right, blank)
+            draw(right, uv_side[f])
+            label = f"side view  t={motion.times[f]:.2f}s" + ("" if seen[f] else "  NOT OBSERVED")
+            cv2.putText(right, label, (10, 10 + 2 * radius + 10), cv2.FONT_HERSHEY_SIMPLEX,
+                        max(0.4, H / 1600), (230, 230, 230), 1, cv2.LINE_AA)
+            if not seen[f]:  # no 2D point: the motion here is the solve's guess
+                cv2.putText(left, "not observed: the motion is carried by the smoothing", (10, 10 + 2 * radius + 10),
+                            cv2.FONT_HERSHEY_SIMPLEX, max(0.4, H / 1600), (230, 230, 230), 1, cv2.LINE_AA)
+            encoder.write(np.concatenate([left, right], axis=1, out=encoder.canvas()))
+            bar.update()
     return out_path
