@@ -282,8 +282,10 @@ def write_overlay(
             FrameProgress(n_frames, f"overlay {out_path.name}", enabled=progress) as bar:
         for t, frame in enumerate(source):
             f = motion.frame_at(t / info.fps)
-            left = frame if owned and frame.shape[1::-1] == (W, H) else \
-                cv2.resize(frame, (W, H), interpolation=cv2.INTER_AREA) if frame.shape[1::-1] != (W, H) else frame.copy()
+            if frame.shape[1::-1] != (W, H):
+                left = cv2.resize(frame, (W, H), interpolation=cv2.INTER_AREA)
+            else:
+                left = frame if owned else frame.copy()
             if det is not None and t < len(det):
                 for k in np.flatnonzero(det_ok[t]):
                     cv2.circle(left, tuple(np.round(det[t, k]).astype(int)), radius + 2, DETECTION_BGR, 1, cv2.LINE_AA)
