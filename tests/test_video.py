@@ -532,6 +532,12 @@ def test_bad_input_is_one_clear_error(cut, tmp_path, capsys):
     err = capsys.readouterr().err  # four cameras for two videos: said before the detector, nothing written
     assert "'--calibration': 2 videos but the calibration holds 4 cameras" in err and "--camera-name" in err
     assert time.perf_counter() - t0 < 3.0 and not (tmp_path / "o4").exists()
+    t0 = time.perf_counter()  # a BVH figure names its joints, not MediaPipe's points: said before the detector
+    bvh = str(data_file("mocap/cmu-mb_02_01.bvh"))
+    assert main(["video", str(cut), "--figure", bvh, "--length-scale", "0.056444", "--out", str(tmp_path / "o5")]) == 2
+    err = capsys.readouterr().err
+    assert "MediaPipe landmarks and the figure share no keypoint name" in err and "--keypoints MAP.json" in err
+    assert "cmu-mb_02_01.bvh" in err and time.perf_counter() - t0 < 3.0 and not (tmp_path / "o5").exists()
     assert main(["video", str(cut), "--out", str(tmp_path / "o3"), "--overlay-height", "0"]) == 2
     assert "--overlay-height" in capsys.readouterr().err and not (tmp_path / "o3").exists()
 

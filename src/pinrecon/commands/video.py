@@ -206,6 +206,12 @@ def run_video(args, tracked=None) -> dict:
 
         cameras_for_tracks(args.camera, args.videos, args.camera_name, given="videos",
                            field="--calibration" if args.calibration else "--camera")
+    if args.figure != "human":  # a BVH or URDF figure names MediaPipe's points, before the detector runs
+        from ..arguments import figure_from_args
+        from ..layouts import MEDIAPIPE_33, shared_point_names
+
+        shared_point_names(MEDIAPIPE_33, figure_from_args(args).keypoint_names, what="MediaPipe landmarks",
+                           source=args.keypoints or args.figure)
     out = check_writable(args.out, folder=True)
     files = _outputs(out, args.videos)
     stages: dict[str, float] = {}

@@ -290,10 +290,13 @@ def shared_point_names(names, figure_names, *, what: str = "tracks", source=None
             file=source,
             field="names",
         )
+    hint = (f". A figure made from a BVH or URDF file names its keypoints after its joints: give it a keypoint map "
+            f"that places the {what}' points on them (--keypoints MAP.json, e.g. {{\"keypoints\": {{\"left_shoulder\": "
+            f"\"LeftArm\", ...}}}}; docs/formats.md, keypoint maps)")
     if not shared:
         raise InputError(
             f"the {what} and the figure share no keypoint name. {what} names: {names[:40]}; "
-            f"figure keypoints: {fig_names[:60]}",
+            f"figure keypoints: {fig_names[:60]}{hint}",
             file=source,
             field="names",
         )
@@ -301,7 +304,7 @@ def shared_point_names(names, figure_names, *, what: str = "tracks", source=None
     if len(shared) < need:
         raise InputError(
             f"the {what} share only {len(shared)} point(s) with the figure ({', '.join(shared)}): at least {need} "
-            f"are needed to place it. {what} names: {names[:40]}; figure keypoints: {fig_names[:60]}",
+            f"are needed to place it. {what} names: {names[:40]}; figure keypoints: {fig_names[:60]}{hint}",
             file=source,
             field="names",
         )
