@@ -21,6 +21,7 @@ from alignment import pa_mpjpe_mm
 import pinrecon as pr
 from pinrecon.cli import main
 from pinrecon.problem import default_calibrate, make_problem
+from pinrecon.starts.limbs import LENGTH_RATIO_BOUNDS
 from pinrecon.synthetic import bundled_motion
 
 SEGMENTS = {
@@ -61,6 +62,30 @@ def runs(coco_walk):
     return {"none": _run(coco_walk, "none"), "lengths": _run(coco_walk, None),
             "camera": _run(coco_walk, "lengths+camera", 0.7)}
 
+
+
+def test_a_figure_whose_lengths_are_kept_says_how_the_tracks_measure_them(coco_walk, runs):
+    """``calibrate="none"`` keeps the figure's own lengths; the result says how the tracks
+    measure its limb segments against them (``calibration["lengths_kept"]``, about 1 where the
+    figure has the subject's proportions) and the summary names those beyond
+    ``starts.limbs.LENGTH_RATIO_BOUNDS``, with --calibrate lengths. Ground truth: the clip's own
+    segment lengths against the generic human's, from the CMU joints (its forearms about 1.5
+    times this subject's, its thighs within 5 %)."""
+    _, tracks, P, _ = coco_walk
+    res = runs["none"][0]
+    kept = res.calibration["lengths_kept"]
+    true = _lengths(P, list(tracks.names))
+    human = _lengths(res.keypoints3d[:, res.figure.keypoint_index(list(tracks.names))], list(tracks.names))
+    for seg, pairs in SEGMENTS.items():
+        for a, b in pairs if seg in ("thigh", "shank", "upper arm", "forearm") else ():
+            assert kept[f"{a}-{b}"] == pytest.approx(true[seg] / human[seg], rel=0.12), (a, b)
+    lo, hi = LENGTH_RATIO_BOUNDS
+    assert kept["left_elbow-left_wrist"] < lo and kept["right_elbow-right_wrist"] < lo
+    assert lo <= kept["left_hip-left_knee"] <= hi and lo <= kept["right_hip-right_knee"] <= hi
+    text = res.summary()
+    assert "the figure's own limb lengths were kept, but the tracks measure left_elbow-left_wrist at" in text
+    assert "--calibrate lengths" in text and "left_hip-left_knee at" not in text
+    assert "lengths_kept" not in runs["lengths"][0].calibration  # lengths fitted: nothing kept to say of
 
 def test_the_generic_humans_proportions_are_calibrated_by_default_with_keyframes(coco_walk, runs):
     res, m = runs["lengths"]
@@ -159,7 +184,10 @@ def test_cli_calibrate_save_figure_and_export_round_trip(coco_walk, tmp_path):
     # the saved figure is the subject's own: reused, it is not calibrated again by default
     assert main(common + ["--figure", str(tmp_path / "subject.urdf"), "--keypoints",
                           str(tmp_path / "subject.keypoints.json"), "--out", str(tmp_path / "b.npz")]) == 0
-    assert pr.load_result(tmp_path / "b.npz").calibration == {}
+    kept = pr.load_result(tmp_path / "b.npz").calibration
+    assert set(kept) == {"lengths_kept"}  # not calibrated; the tracks measure its limbs as it has them:
+    lo, hi = LENGTH_RATIO_BOUNDS
+    assert all(lo <= r <= hi for r in kept["lengths_kept"].values()), kept
     # BVH export writes the calibrated offsets: read back, its thigh is the fitted thigh
     assert main(["export", str(tmp_path / "a.npz"), "--bvh", str(tmp_path / "a.bvh"), "--as-reconstructed"]) == 0
     text = (tmp_path / "a.bvh").read_text()

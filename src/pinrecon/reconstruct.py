@@ -56,6 +56,7 @@ from .starts.camera_auto import (
     placed_by_keyframes,
 )
 from .starts.lifted import has_lifted
+from .starts.limbs import kept_lengths, limb_chains, measured_lengths
 from .tracks import Keyframe, Keyframes, Markers, Tracks
 from .unfamiliar import (
     BROADER_PRIOR,
@@ -601,8 +602,6 @@ def _measured(problem: ReconstructionProblem, q0: np.ndarray):
     alone scales, :meth:`Proportions.pair_groups`): the factors' start and the centre of their
     prior, the other groups held at the figure's. None without proportions to measure, with
     several cameras or 3D keyframes (they measure the lengths themselves), or nothing measured."""
-    from .starts.limbs import limb_chains, measured_lengths
-
     props = problem.proportions
     if props is None or len(problem.views) != 1 or has_point_keyframes(problem.keyframes):
         return None
@@ -681,12 +680,12 @@ def _package(problem: ReconstructionProblem, res: SolveResult, auto: dict | None
         auto = doubt_focal(auto, unfamiliar.share, limit=SWITCH_SHARE,
                            broader=problem.weights.pose_prior_model if judge else None)
     ident = proportions_identifiability(problem, Q, g) if identify else getattr(res, "identifiability", None)
-    identified = {"identifiability": ident} if ident else {}
     result = Result(
         figure, Q, np.arange(T) / problem.fps, problem.fps, P, err, res, observed,
         cameras=problem.cameras_at(g), camera_names=problem.camera_names,
         reprojection_error_px_per_camera=per_camera if views else None,
-        calibration={**problem.calibration(g), **({"camera_auto": auto} if auto else {}), **identified,
+        calibration={**problem.calibration(g), **({"camera_auto": auto} if auto else {}),
+                     **({"identifiability": ident} if ident else {}), **kept_lengths(problem, Q, g),
                      **({"lengths_from_tracks": problem.measured_lengths} if getattr(problem, "measured_lengths", None)
                         else {})},
     )

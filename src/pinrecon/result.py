@@ -26,6 +26,7 @@ from .io.results import check_calibration, load_result_npz, save_result_npz, tex
 from .rows.posture import unused_priors
 from .solver import SolveResult
 from .starts.camera_auto import implausible_focal
+from .starts.limbs import LENGTH_RATIO_BOUNDS
 
 __all__ = ["Result", "StageReport", "check_motion", "hypothesis_spans", "load_result"]
 
@@ -329,6 +330,14 @@ class Result:
             lines.append("  measured from the tracks (the fit's start; other groups held at the figure's): "
                          + "; ".join(f"{plain_segment(g)} {m:.3f} m" for g, m in measured.items()))
         lines += _identifiability_lines(c.get("identifiability"), list(fitted))
+        lo, hi = LENGTH_RATIO_BOUNDS
+        off = {s: r for s, r in (c.get("lengths_kept") or {}).items() if not lo <= r <= hi}
+        if off:  # a figure's own lengths kept (a BVH's, a robot's): where the subject's proportions are not its
+            lines.append("  the figure's own limb lengths were kept, but the tracks measure "
+                         + "; ".join(f"{s} at {r:.2f}" for s, r in off.items()) + " times them (at the solution's "
+                         "depths; about 1 where the figure has the subject's proportions): the joint angles bend to "
+                         "make up the difference. If this skeleton is not the subject's, --calibrate lengths fits "
+                         "its lengths to the tracks (calibrate='lengths')")
         for name, cam in (c.get("cameras") or {}).items():
             what, unit = ("focal length", "px") if cam.get("quantity") == "focal_px" else ("scale", "px/m")
             lines.append(f"  camera {name!r}: {what} {cam['start']:.1f} -> {cam['fitted']:.1f} {unit}")

@@ -19,10 +19,13 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = [
+    "LENGTH_RATIO_BOUNDS",
     "Chain",
     "camera_rays",
     "clean_tracks",
     "image_lengths",
+    "kept_lengths",
+    "length_ratios",
     "limb_chains",
     "measured_lengths",
     "ray_point_at_depth",
@@ -167,14 +170,15 @@ def ray_point_at_depth(camera, uv, z):
     return (x_cam - camera.t) @ camera.R
 
 
-def clean_tracks(problem, Q_base) -> np.ndarray:
+def clean_tracks(problem, Q_base, camera=None) -> np.ndarray:
     """(T, K, 2) image positions of every keypoint on the reconstruction grid: the tracks,
     with isolated spikes removed (running median of 5 observations: outliers, swapped
     labels), gaps interpolated and noise smoothed (moving average over about 1/20 s);
-    keypoints nobody tracks take ``Q_base``'s projection."""
+    keypoints nobody tracks take ``Q_base``'s projection (through ``camera``, by default the
+    problem's)."""
     fig, meas = problem.figure, problem.measurement
     T = len(Q_base)
-    uv = problem.camera.project(fig.keypoints(Q_base))
+    uv = (problem.camera if camera is None else camera).project(fig.keypoints(Q_base))
     if meas is None or not len(meas.frames):
         return uv
     t_all = np.arange(T)
@@ -196,17 +200,19 @@ def clean_tracks(problem, Q_base) -> np.ndarray:
     return uv
 
 
-def measured_lengths(problem, Q, pairs, percentile: float = 95.0) -> np.ndarray:
+def measured_lengths(problem, Q, pairs, percentile: float = 95.0, g=None) -> np.ndarray:
     """(P,) the 3D lengths of keypoint pairs (P, 2) measured from the tracks: each frame,
     the second point's image position (cleaned tracks, :func:`clean_tracks`) is put on its
-    ray at the first point's depth in ``Q`` (the figure at ``problem.g0``); a segment that
-    swings through the image plane shows its full length there, so the ``percentile`` of
-    those distances is its length (an underestimate for a segment that never crosses).
-    NaN for a pair whose points are not both tracked in at least a tenth of the frames."""
+    ray at the first point's depth in ``Q`` (the figure and camera at the globals ``g``,
+    by default ``problem.g0``); a segment that swings through the image plane shows its full
+    length there, so the ``percentile`` of those distances is its length (an underestimate
+    for a segment that never crosses). NaN for a pair whose points are not both tracked in at
+    least a tenth of the frames."""
     pairs = np.asarray(pairs, dtype=int).reshape(-1, 2)
-    meas, cam = problem.measurement, problem.camera
-    uv = clean_tracks(problem, Q)
-    z = cam.depth(problem.keypoints(Q))
+    meas = problem.measurement
+    cam = problem.camera if g is None else problem.cameras_at(g)[0]
+    uv = clean_tracks(problem, Q, cam)
+    z = cam.depth(problem.keypoints(Q, g))
     seen = np.zeros(problem.figure.K)
     if meas is not None and len(meas.frames):
         seen[np.asarray(meas.keypoints)] = meas.observed.mean(axis=0)
@@ -215,6 +221,40 @@ def measured_lengths(problem, Q, pairs, percentile: float = 95.0) -> np.ndarray:
         if seen[pair].min() >= 0.1:
             out[i] = float(np.percentile(image_lengths(cam, uv, z, pair)[:, 0], percentile))
     return out
+
+
+#: :func:`length_ratios` beyond these bounds says the figure's lengths are not the subject's (the
+#: human fitted to Pose2Sim's subject from one camera: 0.88-1.05 over its limb segments; a figure
+#: calibrated on the CMU walk, reused on it: 0.87-1.03; the CMU walk's skeleton on Pose2Sim's
+#: subject: upper arms, thighs and shanks 0.69-0.81, feet 1.18). Lower by more: a segment that
+#: never swings through the image plane is measured short
+LENGTH_RATIO_BOUNDS = (0.8, 1.15)
+
+
+def length_ratios(problem, Q, g=None) -> dict[str, float]:
+    """``{"left_hip-left_knee": ratio, ...}``: each limb segment of the figure, as the tracks
+    measure it at the solution ``Q`` (:func:`measured_lengths` with the globals ``g``: the
+    fitted camera), over its length on the figure: about 1 where the figure's proportions are
+    the subject's (a uniform size is taken up by the depth). Empty but for one camera and a
+    figure whose lengths the solve keeps (no proportions among its unknowns)."""
+    if len(problem.views) != 1 or getattr(problem, "proportions", None) is not None or problem.measurement is None:
+        return {}
+    fig, names = problem.figure, list(problem.tracks.names)
+    pairs = [(c.kp[i], c.kp[i + 1]) for chains in limb_chains(fig, names) for c in chains for i in range(len(c.kp) - 1)]
+    if not pairs:
+        return {}
+    P = problem.keypoints(Q, g)
+    own = np.array([np.median(np.linalg.norm(P[:, b] - P[:, a], axis=-1)) for a, b in pairs])
+    seen = measured_lengths(problem, Q, pairs, g=g)
+    kn = fig.keypoint_names
+    return {f"{kn[a]}-{kn[b]}": float(m / o) for (a, b), m, o in zip(pairs, seen, own) if np.isfinite(m) and o > 0}
+
+
+def kept_lengths(problem, Q, g=None) -> dict:
+    """``{"lengths_kept": {segment: ratio}}`` of :func:`length_ratios` for a result's
+    ``calibration`` where the figure's lengths were kept and measured, else ``{}``."""
+    ratios = length_ratios(problem, Q, g)
+    return {"lengths_kept": {k: round(v, 3) for k, v in ratios.items()}} if ratios else {}
 
 
 def image_lengths(camera, uv, z, path) -> np.ndarray:
