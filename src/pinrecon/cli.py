@@ -162,10 +162,10 @@ def cmd_plot(args) -> int:
     outs = Outputs()
     outs.add_folder(args.out, field="--out")
     outs.check()
-    overlays = _overlay_videos(args)  # every video readable before any drawing
+    result, overlays = _overlay_videos(args)  # every video readable before any drawing
     with outs.commit():
         files = plot_result(
-            args.result,
+            result,
             args.out,
             truth=args.truth,
             tracks=args.tracks,
@@ -175,24 +175,24 @@ def cmd_plot(args) -> int:
             tracks_fps=args.fps,
         )
         if overlays:
-            from .result import load_result
             from .tracks import load_tracks
             from .viz.overlay import write_overlay
 
-            res = load_result(args.result)
             tracks = load_tracks(args.tracks, fps=args.fps) if args.tracks and len(overlays) == 1 else None
-            files += [write_overlay(res, v, Path(args.out) / name, camera_index=i, tracks=tracks)
+            files += [write_overlay(result, v, Path(args.out) / name, camera_index=i, tracks=tracks)
                       for i, (v, name) in enumerate(overlays)]
     for f in files:
         print(f)
     return 0
 
 
-def _overlay_videos(args) -> list[tuple[str, str]]:
-    """``pinrecon plot --video``: ``(video, overlay file name)`` per video, in the result's camera
-    order, each video checked readable (the optional video extra); none without ``--video``."""
+def _overlay_videos(args):
+    """``pinrecon plot --video``: ``(result, [(video, overlay file name)])``, the videos in the
+    result's camera order, each checked readable (the optional video extra); the result's path
+    and no videos without ``--video``."""
     if not args.video:
-        return []
+        return args.result, []
+    from .commands.video import per_video_names
     from .result import load_result
     from .video import video_info
 
@@ -203,12 +203,7 @@ def _overlay_videos(args) -> list[tuple[str, str]]:
                          "in the result's camera order", field="--video")
     for v in args.video:
         video_info(v)
-    stems = [Path(v).stem for v in args.video]
-    if len(args.video) == 1:
-        return [(args.video[0], "overlay.mp4")]
-    if len(set(stems)) != len(stems):
-        stems = [f"{i + 1}_{s}" for i, s in enumerate(stems)]
-    return [(v, f"overlay_{s}.mp4") for v, s in zip(args.video, stems)]
+    return res, list(zip(args.video, per_video_names(args.video, "overlay", ".mp4")))
 
 
 def cmd_export(args) -> int:

@@ -56,7 +56,7 @@ from .starts.camera_auto import (
     placed_by_keyframes,
 )
 from .starts.lifted import has_lifted
-from .starts.limbs import kept_lengths, limb_chains, measured_lengths
+from .starts.limbs import kept_lengths, limb_segments, measured_lengths
 from .tracks import Keyframe, Keyframes, Markers, Tracks
 from .unfamiliar import (
     BROADER_PRIOR,
@@ -605,9 +605,7 @@ def _measured(problem: ReconstructionProblem, q0: np.ndarray):
     props = problem.proportions
     if props is None or len(problem.views) != 1 or has_point_keyframes(problem.keyframes):
         return None
-    names = list(problem.tracks.names)
-    pairs = [(c.kp[i], c.kp[i + 1]) for chains in limb_chains(problem.figure, names) for c in chains
-             for i in range(len(c.kp) - 1)]
+    pairs = limb_segments(problem.figure, list(problem.tracks.names))
     if not pairs:
         return None
     groups = props.pair_groups(pairs)

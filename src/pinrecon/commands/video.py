@@ -25,17 +25,24 @@ from ..errors import InputError
 from . import SolveProgress
 from .track import FPS_HELP, NOBODY, add_video_options, check_video_options, check_writable
 
-__all__ = ["cmd_video", "register", "run_video"]
+__all__ = ["cmd_video", "per_video_names", "register", "run_video"]
 
 
-def _outputs(out: Path, videos: list[str]) -> dict:
+def per_video_names(videos: list[str], stem: str, suffix: str) -> list[str]:
+    """One output file name per video: ``stem + suffix`` for one video, ``stem_<its file's
+    stem> + suffix`` for several (numbered ``stem_<i>_<its stem>`` when two share a stem)."""
+    if len(videos) == 1:
+        return [stem + suffix]
     stems = [Path(v).stem for v in videos]
     if len(set(stems)) != len(stems):
         stems = [f"{i + 1}_{s}" for i, s in enumerate(stems)]
-    one = len(videos) == 1
+    return [f"{stem}_{s}{suffix}" for s in stems]
+
+
+def _outputs(out: Path, videos: list[str]) -> dict:
     return {
-        "tracks": [out / ("tracks.json" if one else f"tracks_{s}.json") for s in stems],
-        "overlay": [out / ("overlay.mp4" if one else f"overlay_{s}.mp4") for s in stems],
+        "tracks": [out / n for n in per_video_names(videos, "tracks", ".json")],
+        "overlay": [out / n for n in per_video_names(videos, "overlay", ".mp4")],
         "result": out / "result.npz",
         "bvh": out / "motion.bvh",
         "csv": out / "motion.csv",

@@ -27,6 +27,7 @@ __all__ = [
     "kept_lengths",
     "length_ratios",
     "limb_chains",
+    "limb_segments",
     "measured_lengths",
     "ray_point_at_depth",
     "sphere_ray",
@@ -161,6 +162,13 @@ def sphere_ray(p, o, d, L):
     return near, far, disc
 
 
+def limb_segments(figure, names) -> list[tuple[int, int]]:
+    """The figure's limb segments among the tracked keypoint ``names``: ``(a, b)`` keypoint
+    indices of each consecutive pair of every :func:`limb_chains` chain."""
+    return [(c.kp[i], c.kp[i + 1]) for chains in limb_chains(figure, names) for c in chains
+            for i in range(len(c.kp) - 1)]
+
+
 def ray_point_at_depth(camera, uv, z):
     """The world point on the ray through ``uv`` (..., 2) at camera depth ``z`` (...)."""
     if hasattr(camera, "scale"):
@@ -239,8 +247,8 @@ def length_ratios(problem, Q, g=None) -> dict[str, float]:
     figure whose lengths the solve keeps (no proportions among its unknowns)."""
     if len(problem.views) != 1 or getattr(problem, "proportions", None) is not None or problem.measurement is None:
         return {}
-    fig, names = problem.figure, list(problem.tracks.names)
-    pairs = [(c.kp[i], c.kp[i + 1]) for chains in limb_chains(fig, names) for c in chains for i in range(len(c.kp) - 1)]
+    fig = problem.figure
+    pairs = limb_segments(fig, list(problem.tracks.names))
     if not pairs:
         return {}
     P = problem.keypoints(Q, g)

@@ -263,6 +263,10 @@ def write_overlay(
             if good[k]:
                 cv2.circle(img, tuple(pts[k]), radius, JOINT_BGR, -1, cv2.LINE_AA)
 
+    def label(img, text):  # a line of text at a panel's top left
+        cv2.putText(img, text, (10, 10 + 2 * radius + 10), cv2.FONT_HERSHEY_SIMPLEX, max(0.4, H / 1600),
+                    (230, 230, 230), 1, cv2.LINE_AA)
+
     out_path = Path(out_path)
     # the frames the result covers (a --max-frames run stops there), or the tracks' frames
     n_frames = int(np.floor(motion.times[-1] * info.fps + 0.5)) + 1 if tracks is None else tracks.T
@@ -292,12 +296,9 @@ def write_overlay(
             draw(left, uv_cam[f])
             np.copyto(right, blank)
             draw(right, uv_side[f])
-            label = f"side view  t={motion.times[f]:.2f}s" + ("" if seen[f] else "  NOT OBSERVED")
-            cv2.putText(right, label, (10, 10 + 2 * radius + 10), cv2.FONT_HERSHEY_SIMPLEX,
-                        max(0.4, H / 1600), (230, 230, 230), 1, cv2.LINE_AA)
+            label(right, f"side view  t={motion.times[f]:.2f}s" + ("" if seen[f] else "  NOT OBSERVED"))
             if not seen[f]:  # no 2D point: the motion here is the solve's guess
-                cv2.putText(left, "not observed: the motion is carried by the smoothing", (10, 10 + 2 * radius + 10),
-                            cv2.FONT_HERSHEY_SIMPLEX, max(0.4, H / 1600), (230, 230, 230), 1, cv2.LINE_AA)
+                label(left, "not observed: the motion is carried by the smoothing")
             encoder.write(np.concatenate([left, right], axis=1, out=encoder.canvas()))
             bar.update()
     return out_path
