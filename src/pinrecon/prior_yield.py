@@ -20,7 +20,8 @@ residual. Under a prior that fits the clip, ``s2`` is about 1.
 :func:`yield_to_data` acts on it: when some group's ``s2`` exceeds :data:`CONFLICT` the prior is
 widened by ``sqrt(s2)`` on those groups and re-centred by the share of each joint the data decide
 (the clip's mean pose, shrunk toward the prior's by the redundancy), and the clip solved again
-from where it was. The stage ``yield`` of :mod:`pinrecon.stages` runs it; the result says which
+from where it was. The stage ``yield`` of :mod:`pinrecon.stages` runs it (with a lifter's 3D, the
+stage ``feet`` adapts the prior and its solve is the one solve); the result says which
 joints the data disagreed with (``Result.extras["prior_conflict_joints"]``).
 """
 

@@ -28,7 +28,8 @@ changed). A stage that has nothing to do returns ``None`` and is reported as ski
            which no pose prior sees); where a CPU is spare, the switched solve is made in a
            child beside the first solve (:mod:`pinrecon.processes`) and taken if the clip switches
 ``yield``  the pose prior widened and re-centred where the data disagree with it
-           (:mod:`pinrecon.prior_yield`), the clip solved again warm
+           (:mod:`pinrecon.prior_yield`), the clip solved again warm; with a lifter's 3D and
+           the feet stage to come, judged there and solved in its solve (one solve, not two)
 ``turns``  fast turns the solution holds a turn too few of, wound (warm re-solves)
 ``mirrors`` the limbs' spans mirrored where that lowers the MAP cost (with the broader prior);
            skipped when the tracks carry a lifter's 3D
@@ -37,7 +38,8 @@ changed). A stage that has nothing to do returns ``None`` and is reported as ski
            solves at most :data:`FOCAL_ITERATIONS_LIFTED` iterations each,
            :data:`FOCAL_ROUNDS_LIFTED` move, a long clip profiled on a stretch of
            :data:`FOCAL_PROFILE_FRAMES`; the profile's longer focal lengths solved beside)
-``feet``   feet on the ground: floor and contact rows, solved again warm
+``feet``   feet on the ground: floor and contact rows (and the pose prior the yield stage left
+           to it adapted), solved again warm
 =========  ======================================================================================
 
 With a lifter's 3D the search and the mirror stage no longer pay: on ``bench/bench_stages.py``
@@ -62,11 +64,11 @@ import numpy as np
 from .contact import solve_on_the_floor
 from .errors import InputError
 from .faults import fault_stage, relabel_sides, report_outliers, side_swap_frames
-from .prior_yield import adapt_prior, yield_to_data
+from .prior_yield import adapt_prior, pose_prior_row, yield_to_data
 from .problem import ReconstructionProblem, make_problem
 from .processes import Beside, forkable
 from .result import SPANS_SHOWN, StageReport, spans_text
-from .solver import SolveResult, SolverOptions, solve
+from .solver import SolveResult, SolverOptions, globals_of, solve
 from .starts import auto_start, initial_trajectory, searches
 from .starts.camera_auto import fitted_focal, implausible_focal, settle_focal
 from .starts.hypotheses import hypotheses_start
@@ -147,6 +149,8 @@ class Run:
     early: bool = False  # the prior switched at the search's base, before any first solve (EARLY_SWITCH)
     judged: JudgedWhile | None = None  # the first solve's judge (its share and iteration where it switched)
     beside: Beside | None = None  # the prior's switched solve made beside the first solve
+    skip: frozenset = frozenset()  # the stages switched off (run_stages)
+    yield_at_feet: bool = False  # the yield stage left the prior's adaptation to the feet stage's solve
 
 
 def relabel_spans(tracks):
@@ -444,12 +448,26 @@ def _degenerate_focal(run: Run) -> float | None:
     return f if f is not None and implausible_focal(f, size) else None
 
 
+def _feet_solve(run: Run) -> bool:
+    """Whether the feet stage will solve the clip again (it runs, with a floor or contacts)."""
+    return "feet" not in run.skip and not (run.floor is None and run.contact is None)
+
+
+def _keep_conflict(run: Run, conflict) -> None:
+    if run.conflict is None or not run.conflict.conflicting:  # what the start found, or this
+        run.conflict = conflict
+
+
 def _yield(run: Run) -> str | None:
+    if _cued(run) and _feet_solve(run) and pose_prior_row(run.problem) is not None:
+        # the lifted rows hold the poses: the feet stage's solve takes the adapted prior (_feet); the same
+        # results or better on bench_stages' clips, without a solve of its own (bench/README.md, bench_stages)
+        run.yield_at_feet = True
+        return "left to the feet stage: the pose prior adapted there, where the data disagree, and solved in its solve"
     run.problem, res, conflict = yield_to_data(run.problem, run.res, run.options, run.callback)
     if conflict is None:
         return None
-    if run.conflict is None or not run.conflict.conflicting:  # what the start found, or this
-        run.conflict = conflict
+    _keep_conflict(run, conflict)
     if res is run.res:
         return "the pose prior agrees with the data"
     run.res = res
@@ -496,12 +514,18 @@ def _focal(run: Run) -> str | None:
 def _feet(run: Run) -> str | None:
     if run.floor is None and run.contact is None:
         return None
+    said = ""
+    if run.yield_at_feet:  # the yield stage's adaptation (_yield), solved below
+        run.problem, conflict = adapt_prior(run.problem, run.res.x, globals_of(run.res))
+        _keep_conflict(run, conflict)
+        if conflict is not None and conflict.conflicting:
+            said = f"; the pose prior widened and re-centred on {len(conflict.conflicting)} joint(s) the data disagree with"
     run.problem, run.res, run.feet = solve_on_the_floor(
         run.problem, run.res, "auto" if run.floor is None else run.floor,
         "auto" if run.contact is None else run.contact,
         settings=run.contact_settings, options=run.options, callback=run.callback,
     )
-    return "feet on the floor: contact rows added, solved again"
+    return "feet on the floor: contact rows added, solved again" + said
 
 
 #: The stages in the order they run: name -> function of the :class:`Run`.
@@ -534,6 +558,7 @@ def run_stages(run: Run, skip: Iterable[str] = (), progress: Callable | None = N
     """Run :data:`STAGES` in order on ``run`` (all but those in ``skip``); ``progress(name)``
     is called as each stage starts. Returns one :class:`StageReport` per stage."""
     reports = []
+    run.skip = frozenset(skip)
     run.judging = "prior" not in skip
     run.spare_cpu = run.judging and forkable(run.problem.n_frames)
     try:
