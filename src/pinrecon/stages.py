@@ -460,8 +460,8 @@ def _keep_conflict(run: Run, conflict) -> None:
 
 def _yield(run: Run) -> str | None:
     if _cued(run) and _feet_solve(run) and pose_prior_row(run.problem) is not None:
-        # the lifted rows hold the poses: the feet stage's solve takes the adapted prior (_feet); the same
-        # results or better on bench_stages' clips, without a solve of its own (bench/README.md, bench_stages)
+        # the lifted rows hold the poses: the feet stage's solve takes the adapted prior (_feet), one solve
+        # instead of two (measured in bench/README.md, bench_video's section)
         run.yield_at_feet = True
         return "left to the feet stage: the pose prior adapted there, where the data disagree, and solved in its solve"
     run.problem, res, conflict = yield_to_data(run.problem, run.res, run.options, run.callback)
