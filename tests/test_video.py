@@ -83,13 +83,88 @@ def test_frames_decoded_ahead_are_the_same_frames(cut, monkeypatch):
 
     read = frames_module._read
 
-    def broken(cap, max_frames):
-        yield from read(cap, 2)
+    def broken(cap, max_frames, start=0):
+        yield from read(cap, 2, start)
         raise OSError("the file went away")
 
     monkeypatch.setattr(frames_module, "_read", broken)
     with pytest.raises(OSError, match="went away"):
         list(iter_frames(cut, ahead=2))
+
+def test_frames_from_a_later_start_are_the_same_frames(cut):
+    """``iter_frames(start=k)`` decodes the frames before ``k`` and drops them: frame ``k`` on,
+    exactly as a read from the first frame gives them, numbered from ``k``."""
+    from pinrecon.video.frames import iter_frames
+
+    cap = cv2.VideoCapture(str(cut))  # ground truth: OpenCV read directly from the first frame
+    truth = [cap.read()[1] for _ in range(N)]
+    cap.release()
+    for ahead in (0, 2):
+        got = list(iter_frames(cut, 8, ahead=ahead, start=6, prepare=lambda t, f: (t, f)))
+        assert [t for t, _ in got] == [6, 7] and all(np.array_equal(f, truth[t]) for t, f in got)
+    assert list(iter_frames(cut, start=N + 5)) == []
+
+
+def test_a_long_video_is_tracked_in_two_parts_the_same_on_any_number_of_cpus(cut, tracked, openpose, monkeypatch):
+    """From :data:`SPLIT_FRAMES` frames on, two trackers take the two halves at once (the second
+    starting :data:`WARM_FRAMES` early): the first half is the one tracker's exactly, the second
+    lies on OpenPose's points as well as the one tracker's does; one CPU (the parts one after the
+    other) gives the same landmarks as two; the frames kept for the overlay are all there, in
+    order; an error in the second part's thread is raised in the caller's."""
+    from pinrecon.video import mediapipe_pose, track_video, video_info
+    from pinrecon.viz.overlay import KeptFrames
+
+    monkeypatch.setattr(mediapipe_pose, "SPLIT_FRAMES", 6)
+    monkeypatch.setattr(mediapipe_pose, "WARM_FRAMES", 2)
+    assert mediapipe_pose.track_parts(N) == [(0, 0, 6), (4, 6, N)]
+    assert mediapipe_pose.track_parts(5) == [(0, 0, 5)]
+    info = video_info(cut)
+    kept = KeptFrames(info, 64, max_width=None)
+    two = track_video(cut, threads=2, on_frame=kept, info=info)
+    one = track_video(cut, threads=1)
+    assert np.array_equal(two.points, one.points, equal_nan=True)
+    assert np.array_equal(two.lifted.points, one.lifted.points, equal_nan=True)
+    assert np.array_equal(two.points[:6], tracked.points[:6], equal_nan=True)
+    seen = openpose.observed[6:]
+    for tr in (two, tracked):
+        err = np.linalg.norm(tr.select(BODY).points[6:] - openpose.points[6:], axis=2)
+        assert np.median(err[seen]) < 25.0  # as test_track_finds_the_openpose_points: 16 px measured
+    cap = cv2.VideoCapture(str(cut))
+    truth = [cv2.resize(cap.read()[1], kept.size, interpolation=cv2.INTER_AREA) for _ in range(N)]
+    cap.release()
+    assert len(kept.frames) == N and all(np.array_equal(a, b) for a, b in zip(kept.frames, truth))
+
+    calls = []
+    detect = mediapipe_pose.MediaPipePose.detect_rgb
+
+    def failing(self, rgb):
+        calls.append(threading.current_thread().name)
+        if threading.current_thread().name != "MainThread" and len(calls) > 3:
+            raise RuntimeError("the second tracker failed")
+        return detect(self, rgb)
+
+    monkeypatch.setattr(mediapipe_pose.MediaPipePose, "detect_rgb", failing)
+    with pytest.raises(RuntimeError, match="second tracker"):
+        track_video(cut, threads=2)
+    assert not any(t.name.startswith("pinrecon-track") for t in threading.enumerate())
+
+
+def test_kept_frames_come_in_any_order():
+    """Two parts of a video decoded at once hand their frames over out of order: the kept frames
+    are the frames in order all the same; with one missing, those before it."""
+    from pinrecon.video import VideoInfo
+    from pinrecon.viz.overlay import KeptFrames
+
+    frames = np.random.default_rng(1).integers(0, 256, (6, 16, 10, 3), dtype=np.uint8)
+    info = VideoInfo("v.mp4", 30.0, 10, 16, 6)
+    kept, gap = KeptFrames(info, None, max_width=None), KeptFrames(info, None, max_width=None)
+    for t in (3, 4, 5, 0, 1, 2):
+        kept(t, frames[t])
+        if t != 4:
+            gap(t, frames[t])
+    assert len(kept.frames) == 6 and all(np.array_equal(a, b) for a, b in zip(kept.frames, frames))
+    assert len(gap.frames) == 4
+
 
 @pytest.fixture(scope="module")
 def openpose():

@@ -26,9 +26,11 @@ from .frames import (
 from .mediapipe_pose import (
     MAX_DETECTOR_THREADS,
     MEDIAPIPE_VERSION,
+    SPLIT_FRAMES,
     MediaPipePose,
     detector_threads,
     require_mediapipe,
+    track_parts,
     track_video,
 )
 from .progress import FrameProgress
@@ -38,6 +40,7 @@ __all__ = [
     "MAX_DETECTOR_THREADS",
     "MEDIAPIPE_VERSION",
     "MIN_CROP",
+    "SPLIT_FRAMES",
     "FrameProgress",
     "MediaPipePose",
     "MissingVideoExtraError",
@@ -47,6 +50,7 @@ __all__ = [
     "iter_frames",
     "require_cv2",
     "require_mediapipe",
+    "track_parts",
     "track_video",
     "video_info",
 ]

@@ -114,18 +114,20 @@ def crop_box(crop, info: VideoInfo, *, field: str = "crop") -> tuple[int, int, i
 
 
 def iter_frames(path: str | os.PathLike, max_frames: int | None = None, *, ahead: int = 0,
-                prepare: Callable[[int, np.ndarray], object] | None = None) -> Iterator:
+                prepare: Callable[[int, np.ndarray], object] | None = None, start: int = 0) -> Iterator:
     """The video's frames in order, each an (H, W, 3) uint8 BGR array (OpenCV's order),
-    at most ``max_frames``. ``ahead`` > 0: a thread decodes up to that many frames ahead
-    of the caller (OpenCV lets go of the GIL while it decodes, so the decoding runs beside
-    the caller's own work on the frames). ``prepare(t, frame)``: what is yielded instead of
-    frame ``t``, computed in that thread (with ``ahead`` > 0) as the frames decode, in order:
-    work on the frames that lets go of the GIL (OpenCV's colour conversions, resizing) then
-    runs beside the caller's."""
+    at most ``max_frames`` (counted from the video's first frame). ``start``: the frames before
+    frame ``start`` are decoded and dropped (no seek: the frame numbers are the decoder's own
+    count, whatever the container's timestamps say). ``ahead`` > 0: a thread decodes up to that
+    many frames ahead of the caller (OpenCV lets go of the GIL while it decodes, so the decoding
+    runs beside the caller's own work on the frames). ``prepare(t, frame)``: what is yielded
+    instead of frame ``t``, computed in that thread (with ``ahead`` > 0) as the frames decode, in
+    order: work on the frames that lets go of the GIL (OpenCV's colour conversions, resizing)
+    then runs beside the caller's."""
     _, cap = _open(path)
-    frames_read = _read(cap, max_frames)
+    frames_read = _read(cap, max_frames, start)
     if prepare is not None:
-        frames_read = (prepare(t, frame) for t, frame in enumerate(frames_read))
+        frames_read = (prepare(t, frame) for t, frame in enumerate(frames_read, start=start))
     if ahead <= 0:
         try:
             yield from frames_read
@@ -175,8 +177,12 @@ def iter_frames(path: str | os.PathLike, max_frames: int | None = None, *, ahead
 _END = object()
 
 
-def _read(cap, max_frames: int | None) -> Iterator[np.ndarray]:
+def _read(cap, max_frames: int | None, start: int = 0) -> Iterator[np.ndarray]:
     n = 0
+    while n < start and (max_frames is None or n < max_frames):
+        if not cap.grab():  # decoded, not converted to an image
+            return
+        n += 1
     while max_frames is None or n < max_frames:
         ok, frame = cap.read()
         if not ok:

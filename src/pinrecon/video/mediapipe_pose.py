@@ -20,6 +20,7 @@ from __future__ import annotations
 import contextlib
 import os
 import sys
+import threading
 import types
 import warnings
 from collections.abc import Callable
@@ -45,8 +46,8 @@ from .progress import FrameProgress
 if TYPE_CHECKING:
     from .frames import VideoInfo
 
-__all__ = ["MAX_DETECTOR_THREADS", "MEDIAPIPE_VERSION", "MediaPipePose", "detector_threads", "require_mediapipe",
-           "track_video"]
+__all__ = ["MAX_DETECTOR_THREADS", "MEDIAPIPE_VERSION", "SPLIT_FRAMES", "WARM_FRAMES", "MediaPipePose",
+           "detector_threads", "require_mediapipe", "track_parts", "track_video"]
 
 #: the MediaPipe release whose legacy Pose solution this reads (its model is in the wheel)
 MEDIAPIPE_VERSION = "0.10.14"
@@ -249,6 +250,29 @@ class MediaPipePose:
         return False
 
 
+#: a video of at least this many frames is tracked in two parts, each by a MediaPipe graph of its
+#: own, at once where two CPUs are free: XNNPACK's threads on one graph wait on each other, two
+#: graphs on a thread each use the CPUs better (600 frames of 1080 x 1920: 10.8 -> 9.1 s; on a
+#: shorter video the second graph's start and the frames it decodes to reach its part eat the
+#: gain: bench/README.md, bench_video_long). The parts depend on the frame count alone, not on
+#: the CPUs, so the landmarks are the same on every machine
+SPLIT_FRAMES = 600
+#: the second part's tracker starts this many frames before the frames it gives (dropped: its
+#: region of interest and MediaPipe's smoothing settle on them)
+WARM_FRAMES = 8
+
+
+def track_parts(total: int) -> list[tuple[int, int, int]]:
+    """The parts :func:`track_video` tracks a video of ``total`` frames in (0: the count is
+    unknown): ``(start, first kept, end)`` each, frames ``[start, end)`` run through one
+    tracker and ``[first kept, end)`` kept (the last part reads on to where the video ends),
+    the two parts about as long as each other."""
+    if total < SPLIT_FRAMES:
+        return [(0, 0, total)]
+    mid = (total + WARM_FRAMES) // 2
+    return [(0, 0, mid), (mid - WARM_FRAMES, mid, total)]
+
+
 def track_video(
     path: str | os.PathLike,
     *,
@@ -267,41 +291,96 @@ def track_video(
     (:class:`~pinrecon.lifted.Lifted`, metres, ``frame="unknown"``, ``source="mediapipe"``).
 
     ``max_frames`` stops early; ``progress`` draws a bar over the frames on stderr;
-    ``on_frame(t, frame_bgr)`` sees each decoded frame, in order, in the thread that decodes
-    them (to reuse the decode: it must not hold the GIL long). ``info``: the video's
-    :func:`~pinrecon.video.video_info` (with the same ``fps``) when the caller has it, which
-    saves opening the file once more. ``crop`` ``(x, y, w, h)``: the detector sees that part of
-    each frame only (:func:`~pinrecon.video.crop_box`) (MediaPipe misses a person who fills little of its image); the landmarks are
-    in the whole frame's pixels all the same. ``threads``: the detector's (:class:`MediaPipePose`;
-    None, every CPU this process may use, up to :data:`MAX_DETECTOR_THREADS`). A file that is
-    not a video raises :class:`~pinrecon.errors.InputError`; a missing extra
+    ``on_frame(t, frame_bgr)`` sees each decoded frame once, in the thread that decodes it (to
+    reuse the decode: it must not hold the GIL long); a video of :data:`SPLIT_FRAMES` frames or
+    more is tracked in two parts at once (:func:`track_parts`), so ``t`` comes in order within
+    each part only. ``info``: the video's :func:`~pinrecon.video.video_info` (with the same
+    ``fps``) when the caller has it, which saves opening the file once more. ``crop`` ``(x, y,
+    w, h)``: the detector sees that part of each frame only (:func:`~pinrecon.video.crop_box`)
+    (MediaPipe misses a person who fills little of its image); the landmarks are in the whole
+    frame's pixels all the same. ``threads``: the detector's (:class:`MediaPipePose`; None, every
+    CPU this process may use, up to :data:`MAX_DETECTOR_THREADS`), shared by the parts' trackers
+    (with one, the parts run one after the other: the same landmarks). A file that is not a
+    video raises :class:`~pinrecon.errors.InputError`; a missing extra
     :class:`~pinrecon.video.MissingVideoExtraError`.
     """
     info = video_info(path, fps=fps) if info is None else info
     total = info.frames_read(max_frames)
-    uv, vis, world = [], [], []
     name = os.path.basename(str(path))
     cv2 = require_cv2()
-
     x0, y0, cw, ch = crop_box(crop, info)
+    parts = track_parts(total)
 
-    def prepare(t, frame):  # in the decoding thread, beside the detector (both let go of the GIL)
-        if on_frame is not None:
+    def prepare(t, frame, first):  # in the decoding thread, beside the detector (both let go of the GIL)
+        if on_frame is not None and t >= first:
             on_frame(t, frame)
         return cv2.cvtColor(frame[y0:y0 + ch, x0:x0 + cw], cv2.COLOR_BGR2RGB)
 
     threads = detector_threads() if threads is None else threads  # said before MediaPipe's notes are hidden
-    with _quiet_native_stderr() as stderr, MediaPipePose(model_complexity, threads=threads) as pose, \
+    at_once = len(parts) > 1 and threads >= len(parts)
+    each = max(1, threads // len(parts)) if at_once else threads
+    found: list[list] = [[] for _ in parts]
+    stop = threading.Event()
+    with _quiet_native_stderr() as stderr, contextlib.ExitStack() as graphs, \
             FrameProgress(total, f"track {name}", enabled=progress, file=stderr) as bar:
-        for rgb in iter_frames(path, max_frames, ahead=4, prepare=prepare):
-            a, b, c = pose.detect_rgb(rgb)
-            uv.append(a)
-            vis.append(b)
-            world.append(c)
-            bar.update()
+        poses = [graphs.enter_context(MediaPipePose(model_complexity, threads=each)) for _ in parts]
+
+        def track(i):  # part i through its own tracker
+            start, first, end = parts[i]
+            frames = iter_frames(path, max_frames if i == len(parts) - 1 else end, ahead=4, start=start,
+                                 prepare=lambda t, f: prepare(t, f, first))
+            try:
+                for t, rgb in enumerate(frames, start=start):
+                    if stop.is_set():
+                        return
+                    detected = poses[i].detect_rgb(rgb)
+                    if t >= first:
+                        found[i].append(detected)
+                        bar.update()
+            finally:
+                frames.close()
+
+        if at_once:
+            _in_threads(track, len(parts), stop)
+        else:
+            for i in range(len(parts)):
+                track(i)
+    rows = found[0]
+    for (_, first, _), more in zip(parts[1:], found[1:]):
+        if len(rows) == first:  # (a video shorter than its container says may end in the first part)
+            rows = rows + more
     names = list(MEDIAPIPE_33)
-    uv = np.array(uv).reshape(-1, len(names), 2) + [x0, y0]  # the whole frame's pixels
-    lifted = Lifted(np.array(world).reshape(-1, len(names), 3), names, np.array(vis).reshape(-1, len(names)),
-                    frame="unknown", source="mediapipe")
-    return Tracks(uv, names, info.fps, lifted.confidence.copy(), str(path),
-                  "mediapipe33", lifted)
+    n = len(names)
+    uv = np.array([r[0] for r in rows]).reshape(-1, n, 2) + [x0, y0]  # the whole frame's pixels
+    vis = np.array([r[1] for r in rows]).reshape(-1, n)
+    lifted = Lifted(np.array([r[2] for r in rows]).reshape(-1, n, 3), names, vis, frame="unknown",
+                    source="mediapipe")
+    return Tracks(uv, names, info.fps, lifted.confidence.copy(), str(path), "mediapipe33", lifted)
+
+
+def _in_threads(work: Callable[[int], None], n: int, stop: threading.Event) -> None:
+    """``work(i)`` for ``i < n``: the first here, the others each in a thread of its own; the
+    first error (or an interrupt) here sets ``stop`` for the others, and an error of theirs is
+    raised here once every thread has ended."""
+    errors: list[BaseException] = []
+
+    def run(i):
+        try:
+            work(i)
+        except BaseException as exc:  # noqa: BLE001 - raised again in the caller's thread
+            errors.append(exc)
+            stop.set()
+
+    others = [threading.Thread(target=run, args=(i,), name=f"pinrecon-track-{i}", daemon=True) for i in range(1, n)]
+    for th in others:
+        th.start()
+    try:
+        work(0)
+    except BaseException:
+        stop.set()
+        raise
+    finally:
+        for th in others:
+            th.join()
+    if errors:
+        raise errors[0]

@@ -5,13 +5,15 @@ a file)."""
 from __future__ import annotations
 
 import sys
+import threading
 import time
 
 __all__ = ["FrameProgress"]
 
 
 class FrameProgress:
-    """``with FrameProgress(total, "track cam01.mp4") as bar: bar.update()`` per frame.
+    """``with FrameProgress(total, "track cam01.mp4") as bar: bar.update()`` per frame (from any
+    thread).
 
     ``enabled=False`` prints nothing; ``total`` may be 0 (unknown length); ``file``: where to
     (default stderr)."""
@@ -20,6 +22,7 @@ class FrameProgress:
         self.total, self.desc, self.enabled, self.unit = int(total or 0), desc, enabled, unit
         self.file = sys.stderr if file is None else file
         self.n, self.t0, self._bar, self._last = 0, time.perf_counter(), None, -1
+        self._lock = threading.Lock()  # frames may come from several threads
         if not enabled:
             return
         try:
@@ -30,6 +33,10 @@ class FrameProgress:
                          dynamic_ncols=True)
 
     def update(self, n: int = 1) -> None:
+        with self._lock:
+            self._update(n)
+
+    def _update(self, n: int) -> None:
         self.n += n
         if not self.enabled:
             return

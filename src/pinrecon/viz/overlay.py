@@ -66,10 +66,10 @@ def _overlay_size(width: int, height: int, max_height: int | None, max_width: in
 
 class KeptFrames:
     """A video's frames scaled to the overlay's size, kept while another pass decodes them
-    (:func:`pinrecon.video.track_video`'s ``on_frame``), so that :func:`write_overlay` need not
-    decode the video again. Frames are kept up to ``budget`` bytes (default
-    :attr:`BUDGET`); a video with more lets them all go (:attr:`frames` is then None) and the
-    overlay decodes it as usual. ``frames``: how many the pass will read (default the video's
+    (:func:`pinrecon.video.track_video`'s ``on_frame``, called with each frame once, from the
+    threads that decode them: in any order), so that :func:`write_overlay` need not decode the
+    video again. Frames are kept up to ``budget`` bytes (default :attr:`BUDGET`); a video with
+    more lets them all go (:attr:`frames` is then None) and the overlay decodes it as usual. ``frames``: how many the pass will read (default the video's
     count, ``info.frames``; :meth:`~pinrecon.video.VideoInfo.frames_read`): their memory is
     mapped in at once, in a thread, before the first arrives (:func:`frame_store`).
 
@@ -85,13 +85,14 @@ class KeptFrames:
                  max_width: int | None = PANEL_SIDE, frames: int | None = None):
         self.size = _overlay_size(info.width, info.height, max_height, max_width)
         self.budget = self.BUDGET if budget is None else int(budget)
-        self.frames: list[np.ndarray] | None = []
+        self._kept: dict[int, np.ndarray] | None = {}
+        self._lock = threading.Lock()
         self._cv2 = require_cv2()
         n = info.frames if frames is None else frames
         W, H = self.size
         self._store, self._mapping = None, None
         if n and n * W * H * 3 > self.budget:
-            self.frames = None  # more than the budget holds: nothing kept, nothing mapped
+            self._kept = None  # more than the budget holds: nothing kept, nothing mapped
         elif n:
             def mapped():
                 try:
@@ -102,17 +103,31 @@ class KeptFrames:
             self._mapping = threading.Thread(target=mapped, name="pinrecon-kept-frames", daemon=True)
             self._mapping.start()
 
+    @property
+    def frames(self) -> list[np.ndarray] | None:
+        """The frames kept, from the first on as long as none is missing; None when they were let go."""
+        kept = self._kept
+        if kept is None:
+            return None
+        out = []
+        while len(out) in kept:
+            out.append(kept[len(out)])
+        return out
+
     def __call__(self, t: int, frame: np.ndarray) -> None:
-        if self.frames is None:
+        kept_so_far = self._kept  # (another thread may let them go meanwhile)
+        if kept_so_far is None:
             return
-        if self._mapping is not None:
-            self._mapping.join()
-            self._mapping = None
-        if t != len(self.frames) or (t + 1) * self.size[0] * self.size[1] * 3 > self.budget:
-            self.frames = self._store = None  # over the budget (or not every frame seen): the overlay decodes the video
+        with self._lock:
+            if self._mapping is not None:
+                self._mapping.join()
+                self._mapping = None
+        if t in kept_so_far or (t + 1) * self.size[0] * self.size[1] * 3 > self.budget:
+            self._kept = self._store = None  # over the budget (or a frame twice): the overlay decodes the video
             return
         W, H = self.size
-        into = self._store[t] if self._store is not None and t < len(self._store) else None
+        store = self._store
+        into = store[t] if store is not None and t < len(store) else None
         if (W, H) != frame.shape[1::-1]:
             kept = self._cv2.resize(frame, (W, H), dst=into, interpolation=self._cv2.INTER_AREA)
         elif into is None:
@@ -120,7 +135,7 @@ class KeptFrames:
         else:
             into[...] = frame
             kept = into
-        self.frames.append(kept)
+        kept_so_far[t] = kept
 
 
 def frame_store(n: int, height: int, width: int) -> np.ndarray:
