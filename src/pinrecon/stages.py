@@ -512,7 +512,7 @@ def _focal(run: Run) -> str | None:
 
 
 def _feet(run: Run) -> str | None:
-    if run.floor is None and run.contact is None:
+    if not _feet_solve(run):
         return None
     said = ""
     if run.yield_at_feet:  # the yield stage's adaptation (_yield), solved below

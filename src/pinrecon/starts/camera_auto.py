@@ -445,7 +445,8 @@ def profile_stretch(problem, res, n: int | None, options=None, frames: tuple | N
         starts = sorted({*range(0, T - n + 1, max(1, n // 4)), T - n})
         spread = [np.nanmax(z[a:a + n]) / np.nanmin(z[a:a + n]) if np.isfinite(z[a:a + n]).any() else 0.0
                   for a in starts]
-        frames = (starts[int(np.argmax(spread))], starts[int(np.argmax(spread))] + n)
+        first = starts[int(np.argmax(spread))]
+        frames = (first, first + n)
     lo, hi = frames
     part = problem.cropped(lo, hi, problem.state(res.x, False, g=g_fit))
     if part is None:

@@ -69,9 +69,10 @@ class KeptFrames:
     (:func:`pinrecon.video.track_video`'s ``on_frame``, called with each frame once, from the
     threads that decode them: in any order), so that :func:`write_overlay` need not decode the
     video again. Frames are kept up to ``budget`` bytes (default :attr:`BUDGET`); a video with
-    more lets them all go (:attr:`frames` is then None) and the overlay decodes it as usual. ``frames``: how many the pass will read (default the video's
-    count, ``info.frames``; :meth:`~pinrecon.video.VideoInfo.frames_read`): their memory is
-    mapped in at once, in a thread, before the first arrives (:func:`frame_store`).
+    more lets them all go (:attr:`frames` is then None) and the overlay decodes it as usual.
+    ``frames``: how many the pass will read (default the video's count, ``info.frames``;
+    :meth:`~pinrecon.video.VideoInfo.frames_read`): their memory is mapped in at once, in a
+    thread, before the first arrives (:func:`frame_store`).
 
     >>> kept = KeptFrames(video_info("clip.mp4"))                   # doctest: +SKIP
     >>> tracks = track_video("clip.mp4", on_frame=kept)              # doctest: +SKIP
