@@ -27,14 +27,17 @@ four-camera triangulation (PA-MPJPE, flips along that camera's line of sight), s
 
 ``--map`` also runs ``pinrecon.reconstruct`` (``Figure.human()``, the true camera, no keyframes; ``--keyframes
 first+last``: 3D point keyframes on the first and last frames)
-on the CMU cases: today's default path (``lifter="none"``) and the same with the fold's lifter
-(``lifter=FILE``, :func:`pinrecon.lifter.attach_lifter`), the lifter alone beside them; and on
-Pose2Sim's trial, each camera with the auto camera, with and without the shipped lifter (slow:
-up to minutes a run; ``--clips`` and ``--angles`` choose).
+on the CMU cases: the path without the lifter (``lifter="none"``) and the default path with the
+fold's lifter (``lifter=FILE``, :func:`pinrecon.lifter.attach_lifter`: its rows from the start
+while the default pose prior holds, at ``Weights.own_lifter``; at ``Weights.lifted`` once the
+prior switches), the lifter alone beside them; and on Pose2Sim's trial, each camera with the
+auto camera, with and without the shipped lifter (slow: up to minutes a run; ``--clips`` and
+``--angles`` choose). One draw of the detector's faults varies the flips by a few points
+(``--seeds``: the mean over several draws, the flips' range beside).
 
     OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 python bench/bench_lifter.py
     python bench/bench_lifter.py --folds ~/.cache/pinrecon/lifter-folds --map
-    python bench/bench_lifter.py --map --clips walk run --angles 45 --no-pose2sim
+    python bench/bench_lifter.py --map --clips walk run --no-pose2sim --seeds 45 60 1 2 3 4
 """
 
 from __future__ import annotations
@@ -96,9 +99,12 @@ def score_lifted(L, P_true, camera):
             "flips": 100.0 * metrics.flip_rate(P, P_true, camera, segs)}
 
 
-def cmu_case(clip, azimuth, keyframes="none"):
+def cmu_case(clip, azimuth, keyframes="none", seed=None):
+    """The case's tracks, camera, true points and keyframes; ``seed`` draws the detector's faults
+    (default the angle's own, ``int(azimuth)``: the single-seed tables)."""
     fig, q, fps = bundled_motion(clip)
-    tracks, cam, keys, P, _ = bench_real.tracked_case(fig, q, fps, azimuth, keyframes, seed=int(azimuth))
+    tracks, cam, keys, P, _ = bench_real.tracked_case(fig, q, fps, azimuth, keyframes,
+                                                      seed=int(azimuth) if seed is None else int(seed))
     order = [list(tracks.names).index(n) for n in BODY]
     return tracks, cam, P[:, order], keys
 
@@ -188,6 +194,31 @@ def pose2sim_map_rows(path, weight=None, cameras=(1, 2, 3, 4)):
     return rows
 
 
+def map_seeds(a, model, fold, clip, az):
+    """One table row of ``--map --seeds``: the lifter alone, the MAP without it and with it, each
+    the mean over the seeds' draws of the detector's faults, the flips' range beside."""
+    rows = []
+    for seed in a.seeds:
+        tracks, cam, P, keys = cmu_case(clip, az, a.keyframes, seed)
+        alone = score_lifted(lift(tracks, cam, model=model), P, cam)
+        d = run_map(tracks, cam, P, keyframes=keys)  # lifter="none"
+        w = run_map(tracks, cam, P, str(fold_path(a.folds, fold)), a.weight, a.from_start, keyframes=keys,
+                    **({"seed": a.seed} if a.seed else {}))
+        assert not d["lifted"]
+        rows.append((alone, d, w))
+
+    def cell(k):
+        pa, fl = [r[k]["pa"] for r in rows], [r[k]["flips"] for r in rows]
+        return f"{np.mean(pa):.1f} / {np.mean(fl):.1f} ({min(fl):.1f}-{max(fl):.1f})"
+
+    pa_t, fl_t = TARGETS[clip]
+    w_pa, w_fl = np.mean([r[2]["pa"] for r in rows]), np.mean([r[2]["flips"] for r in rows])
+    met = "" if fl_t is None else f" | {'yes' if w_pa <= pa_t and w_fl <= fl_t else 'no'}"
+    print(f"| {CLIP_NAME[clip]} | {az:.0f} | {fold} | {cell(0)} | {cell(1)} | {cell(2)} "
+          f"| {np.mean([r[1]['time'] for r in rows]):.1f} / {np.mean([r[2]['time'] for r in rows]):.1f}{met} |",
+          flush=True)
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--folds", type=Path, default=datasets.cache_dir() / "lifter-folds",
@@ -203,6 +234,9 @@ def main(argv=None):
     ap.add_argument("--keyframes", default="none", choices=["none", "first+last"],
                     help="the CMU cases' 3D point keyframes (5 cm; default none, the issue's main case)")
     ap.add_argument("--weight", type=float, help="Weights.lifted of the MAP with the lifter (default: Weights' own)")
+    ap.add_argument("--seeds", nargs="+", type=int, metavar="S",
+                    help="with --map: the CMU cases' detector faults drawn with each of these seeds, the MAP scored "
+                    "as the mean over them and the range of the flips (default: one draw, the angle's own seed)")
     ap.add_argument("--seed", help="the start of the MAP with the lifter (reconstruct's seed=; default its own: with "
                     "--from-start the lifted start)")
     a = ap.parse_args(argv)
@@ -253,20 +287,33 @@ def main(argv=None):
                   flush=True)
     if a.map:
         kf = "no keyframes" if a.keyframes == "none" else "point keyframes (5 cm) on the first and last frames"
-        print(f"\nThe MAP (pinrecon.reconstruct, Figure.human(), the true camera, {kf}): today's default path "
+        print(f"\nThe MAP (pinrecon.reconstruct, Figure.human(), the true camera, {kf}): without the lifter "
               "(lifter='none') and with the fold's lifter (lifter=FILE: its lifted-pose rows"
               + (f", Weights.lifted {a.weight:g}" if a.weight is not None else "")
-              + (", in every solve" if a.from_start else ", joining with the broader prior as by default")
+              + (", in every solve" if a.from_start else ", as by default: from the start while the default prior "
+                 "holds, joining again with the broader prior")
               + (f", start {a.seed!r}" if a.seed else "")
               + "); the lifter alone beside them\n")
-        print("| clip | angle | fold | lifter alone PA-MPJPE (mm) / flips (%) | MAP today PA-MPJPE (mm) / flips (%) "
-              "| MAP + lifter PA-MPJPE (mm) / flips (%) | time today / with lifter (s) |")
-        print("|---|---:|---|---|---|---|---|")
+        if a.seeds:
+            print(f"Each cell the mean over {len(a.seeds)} draws of the detector's faults (seeds "
+                  f"{', '.join(map(str, a.seeds))}), the flips' range in brackets; 'met': the MAP with the lifter "
+                  "within the issue's PA-MPJPE and flips on the means\n")
+            print("| clip | angle | fold | lifter alone PA-MPJPE (mm) / flips (%) | MAP without the lifter "
+                  "PA-MPJPE (mm) / flips (%) | MAP with the lifter PA-MPJPE (mm) / flips (%) | time without / with (s) "
+                  "| met |")
+            print("|---|---:|---|---|---|---|---|---|")
+        else:
+            print("| clip | angle | fold | lifter alone PA-MPJPE (mm) / flips (%) | MAP today PA-MPJPE (mm) / flips (%) "
+                  "| MAP + lifter PA-MPJPE (mm) / flips (%) | time today / with lifter (s) |")
+            print("|---|---:|---|---|---|---|---|")
         for fold, clips in FOLDS.items():
             if fold == "shipped" or fold not in models:
                 continue
             for clip in [c for c in clips if c in a.clips]:
                 for az in a.angles:
+                    if a.seeds:
+                        map_seeds(a, models[fold], fold, clip, az)
+                        continue
                     tracks, cam, P, keys = cases.get((clip, az)) or cmu_case(clip, az, a.keyframes)
                     alone = score_lifted(lift(tracks, cam, model=models[fold]), P, cam)
                     d = run_map(tracks, cam, P, keyframes=keys)  # lifter="none"

@@ -19,7 +19,9 @@ changed). A stage that has nothing to do returns ``None`` and is reported as ski
            lifted start when the tracks carry a lifter's 3D; with one camera, the limbs'
            lengths measured from the tracks) and the batch solve; a start that is dense 3D
            keyframes' poses first adapts the pose prior to them
-           (:func:`pinrecon.prior_yield.adapt_prior`)
+           (:func:`pinrecon.prior_yield.adapt_prior`). Tracks without 3D of their own take
+           pinrecon's lifter's rows from the start, at ``Weights.own_lifter``, while the default
+           pose prior holds (:func:`_join_from_start`)
 ``prior``  the generic human's pose prior switched to its broader mixture and the clip solved
            again when more of its poses than :func:`pinrecon.unfamiliar.switch_share` are
            unknown to the default, pinrecon's lifter joining as lifted-pose rows (``lifter="auto"``);
@@ -84,6 +86,7 @@ from .unfamiliar import (
     unfamiliar_poses,
     unfamiliar_share,
 )
+from .weights import Weights
 
 #: the focal stage's solves with lifted cues: at most this many iterations each (bench_stages:
 #: the same PA-MPJPE and flips on the five clips, the stage 30 % shorter on Pose2Sim's trial)
@@ -133,8 +136,9 @@ class Run:
     contact_settings: object = None
     measure_lengths: Callable | None = None  # (problem, q0, start, inputs) -> (problem, q0)
     yield_at_start: bool = False  # the pose prior adapted to the start (the keyframes' poses) before the solve
-    lifter: Callable | None = None  # tracks -> tracks with a lifter's 3D cues, joined when the prior switches
-    joined: bool = False  # the lifter joined at the prior's switch (the cue rules below are for given cues)
+    lifter: Callable | None = None  # tracks -> tracks with pinrecon's lifter's 3D cues (pinrecon.lifter)
+    joined: bool = False  # pinrecon's lifter joined (the cue rules below are for given cues)
+    unjoined: tuple | None = None  # (tracks, weights) before the lifter joined from the start (_join_from_start)
     # what the stages leave for the result
     switch: tuple | None = None
     switch_focal: float | None = None  # the first solve's implausible focal length (px) that switched the prior
@@ -213,8 +217,8 @@ def _solve(run: Run) -> str:
         if run.default_prior is not None:
             warnings.simplefilter("always")
         auto = isinstance(run.start, str) and run.start == "auto"
+        what = "start and batch solve" + _join_from_start(run)
         start = functools.partial(auto_start, lifted=False) if run.joined and auto else run.start
-        what = "start and batch solve"
         base = _judged_base(run)
         verdict = early_verdict(None if base is None else base[1], run.switch_limit)
         if verdict is None and run.started is None and not _lifted_start(run):
@@ -246,13 +250,41 @@ def _solve(run: Run) -> str:
     return f"{what}: {run.res.iterations} iterations, {run.res.status}"
 
 
+def _join_from_start(run: Run) -> str:
+    """Pinrecon's lifter's rows put in from the start, at ``Weights.own_lifter``, for tracks
+    without 3D of their own while the default pose prior holds (the auto start, no 3D
+    keyframes: they decide what the lifter would guess): the inputs it had are kept in
+    ``run.unjoined`` and come back if the prior switches (:func:`_switch_to`: the lifter then
+    joins at ``Weights.lifted``).
+    Returns what the solve stage says of it ("" when it does not join). Measured in
+    bench/bench_lifter.py (``--seeds``)."""
+    weights = run.inputs.get("weights") or Weights()
+    weight = weights.own_lifter
+    if run.lifter is None or not weight or run.joined or _cued(run) or run.started is not None \
+            or run.yield_at_start or run.default_prior not in BROADER_PRIOR or run.inputs.get("keyframes") \
+            or not (isinstance(run.start, str) and run.start == "auto"):
+        return ""
+    tracks = run.inputs["tracks"]
+    joined = run.lifter(tracks)
+    if getattr(joined, "lifted", None) is None:
+        return ""
+    run.unjoined = (tracks, run.inputs.get("weights"))
+    run.inputs["tracks"], run.inputs["weights"] = joined, replace(weights, lifted=weight)
+    run.joined = True
+    reports = dict(run.problem.reports)
+    run.problem = make_problem(**run.inputs, calibrate=run.mode)
+    run.problem.reports.update(reports)
+    return f" with pinrecon's lifter's rows (weight {weight:g})"
+
+
 def _judged_base(run: Run) -> tuple[np.ndarray, float] | None:
     """The first solve's search base and its share of poses the default prior does not know
     (:func:`~pinrecon.unfamiliar.judged_at_base`); None where the prior stage judges no switch
     or the start is no search."""
     broader = BROADER_PRIOR.get(run.default_prior) if run.default_prior is not None else None
-    if broader is None or not run.judging or run.yield_at_start or run.started is not None or run.joined \
-            or not (isinstance(run.start, str) and run.start == "auto") or not searches(run.problem):
+    if broader is None or not run.judging or run.yield_at_start or run.started is not None \
+            or run.joined and run.unjoined is None \
+            or not (isinstance(run.start, str) and run.start == "auto") or not searches(run.problem, not run.joined):
         return None
     return judged_at_base(run.problem)
 
@@ -379,6 +411,8 @@ def _switch_to(run: Run, name: str, made: _Made | None = None) -> str | None:
     """The prior stage's switch to the broader prior ``name`` on ``run``: its inputs, problem
     and start made again and solved (the solve's description returned), or the problem made
     again and ``made``'s solve taken."""
+    if run.unjoined is not None:  # the lifter joined from the start: it joins again at Weights.lifted
+        (run.inputs["tracks"], run.inputs["weights"]), run.unjoined, run.joined = run.unjoined, None, False
     run.inputs["weights"] = replace(run.inputs["weights"], pose_prior_model=name)
     if run.lifter is not None:  # poses the default prior does not know: the lifter's cues join
         given = getattr(run.inputs["tracks"], "lifted", None) is not None

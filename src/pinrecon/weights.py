@@ -65,6 +65,11 @@ class Weights:
         ``|d - R l|`` between the figure's unit bone direction and the lifter's (25: a standard
         deviation of 0.2, about 11 degrees), times the lifter's confidence; ``0`` or ``None``
         turns them off. Measured in ``bench/bench_lifted.py``.
+    own_lifter : weight of pinrecon's own lifter's rows (``reconstruct(lifter=...)``, for tracks
+        without a lifter's 3D) while the clip is solved with the default pose prior: they
+        join from the start at this weight (as ``lifted``, times the lifter's confidence),
+        and at ``lifted`` when the prior switches to its broader mixture; ``None``: only then.
+        3 measured in ``bench/bench_lifter.py`` (``--seeds``).
     lifted_loss, lifted_loss_scale : their robust loss (``"cauchy"``, ``"huber"``, ``"l2"``)
         on the chord, and its scale in chord units (0.5: about 29 degrees), so a bone the
         lifter got wrong is outvoted by the image and the other rows.
@@ -95,6 +100,7 @@ class Weights:
     root_group: str = "R3xSO3"
     sigma_proportions: float = 0.1
     lifted: float | None = 25.0
+    own_lifter: float | None = 3.0
     lifted_loss: str = "cauchy"
     lifted_loss_scale: float = 0.5
     lifted_lengths: float | None = 0.05
