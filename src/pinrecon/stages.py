@@ -253,11 +253,12 @@ def _solve(run: Run) -> str:
 def _join_from_start(run: Run) -> str:
     """Pinrecon's lifter's rows put in from the start, at ``Weights.own_lifter``, for tracks
     without 3D of their own while the default pose prior holds (the auto start, no 3D
-    keyframes: they decide what the lifter would guess): the inputs it had are kept in
-    ``run.unjoined`` and come back if the prior switches (:func:`_switch_to`: the lifter then
-    joins at ``Weights.lifted``).
-    Returns what the solve stage says of it ("" when it does not join). Measured in
-    bench/bench_lifter.py (``--seeds``)."""
+    keyframes: they decide what the lifter would guess); its directions only, not its
+    proportions (``Weights.lifted_lengths``: the same scores, a fifth less time on
+    bench_lifter's walk and run). The inputs it had are kept in ``run.unjoined`` and come
+    back if the prior switches (:func:`_switch_to`: the lifter then joins at
+    ``Weights.lifted``). Returns what the solve stage says of it ("" when it does not join).
+    Measured in bench/bench_lifter.py (``--seeds``)."""
     weights = run.inputs.get("weights") or Weights()
     weight = weights.own_lifter
     if run.lifter is None or not weight or run.joined or _cued(run) or run.started is not None \
@@ -269,7 +270,7 @@ def _join_from_start(run: Run) -> str:
     if getattr(joined, "lifted", None) is None:
         return ""
     run.unjoined = (tracks, run.inputs.get("weights"))
-    run.inputs["tracks"], run.inputs["weights"] = joined, replace(weights, lifted=weight)
+    run.inputs["tracks"], run.inputs["weights"] = joined, replace(weights, lifted=weight, lifted_lengths=None)
     run.joined = True
     reports = dict(run.problem.reports)
     run.problem = make_problem(**run.inputs, calibrate=run.mode)
