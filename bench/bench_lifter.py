@@ -303,8 +303,8 @@ def main(argv=None):
                   "| met |")
             print("|---|---:|---|---|---|---|---|---|")
         else:
-            print("| clip | angle | fold | lifter alone PA-MPJPE (mm) / flips (%) | MAP today PA-MPJPE (mm) / flips (%) "
-                  "| MAP + lifter PA-MPJPE (mm) / flips (%) | time today / with lifter (s) |")
+            print("| clip | angle | fold | lifter alone PA-MPJPE (mm) / flips (%) | MAP without the lifter PA-MPJPE (mm) "
+                  "/ flips (%) | MAP with the lifter PA-MPJPE (mm) / flips (%) | time without / with (s) |")
             print("|---|---:|---|---|---|---|---|")
         for fold, clips in FOLDS.items():
             if fold == "shipped" or fold not in models:
