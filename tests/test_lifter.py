@@ -271,6 +271,18 @@ def test_a_prior_switch_takes_the_lifter_as_without_the_start_join(monkeypatch):
     np.testing.assert_array_equal(joined.keypoints3d, never.keypoints3d)
 
 
+def test_the_own_lifter_weight_option_reaches_the_weights():
+    from pinrecon.arguments import WEIGHT_OPTIONS, weights_kwargs
+    from pinrecon.cli import build_parser
+
+    base = ["reconstruct", "--figure", "human", "--tracks", "t.json", "--camera", "auto", "--out", "o"]
+    for flag, expect in ((["--own-lifter-weight", "5"], 5.0), (["--own-lifter-weight", "0"], None), ([], 3.0)):
+        args = build_parser().parse_args(base + flag)
+        assert pr.Weights(**weights_kwargs(args, WEIGHT_OPTIONS)).own_lifter == expect
+    with pytest.raises(SystemExit):
+        build_parser().parse_args(base + ["--own-lifter-weight", "-1"])
+
+
 @pytest.mark.slow
 def test_reconstruct_with_the_lifter_on_a_held_out_clip():
     """CMU subject 9's run (never seen by the shipped weights), the issue's detector faults,

@@ -68,6 +68,10 @@ def add_reconstruct_options(r, *, inputs=None, camera_required: bool = True, fig
                    "tracks that carry none: 'auto' (the shipped weights, for --figure human with the COCO-17 body "
                    "points), 'none', or a weights file (tools/train_lifter.py); default: "
                    "pinrecon.lifter.DEFAULT_LIFTER (docs/lifted.md)")
+    r.add_argument("--own-lifter-weight", type=_non_negative, metavar="W",
+                   help="weight of pinrecon's own lifter's rows from the start, while the default pose prior holds "
+                   "(default 3, Weights.own_lifter; with the broader prior they take --lifted-weight); 0: the "
+                   "lifter only where the prior switches")
     r.add_argument("--fps-out", type=float, help="reconstruction rate (integer multiple of the tracks' rate)")
     r.add_argument("--seed", choices=["auto", "rest", "keyframes", "planarity", "hypotheses"],
                    help="the start (default auto: the multi-hypothesis start when keyframes are absent or sparse, "
@@ -330,10 +334,13 @@ def add_pose_prior_argument(parser) -> None:
 
 def weights_kwargs(args, names) -> dict:
     """The :class:`~pinrecon.Weights` keywords the command line gave: ``names`` (those not
-    None), ``--lifted-weight`` and the pose-prior flags (:func:`pose_prior_weights`)."""
+    None), ``--lifted-weight``, ``--own-lifter-weight`` and the pose-prior flags
+    (:func:`pose_prior_weights`)."""
     out = {k: getattr(args, k) for k in names if getattr(args, k, None) is not None}
     if getattr(args, "lifted_weight", None) is not None:  # --lifted-weight (--lifted is a file)
         out["lifted"] = args.lifted_weight
+    if getattr(args, "own_lifter_weight", None) is not None:
+        out["own_lifter"] = args.own_lifter_weight or None  # 0: the lifter only at the prior's switch
     out.update(pose_prior_weights(args))
     return out
 
