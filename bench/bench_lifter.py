@@ -213,7 +213,7 @@ def map_seeds(a, model, fold, clip, az):
 
     pa_t, fl_t = TARGETS[clip]
     w_pa, w_fl = np.mean([r[2]["pa"] for r in rows]), np.mean([r[2]["flips"] for r in rows])
-    met = "" if fl_t is None else f" | {'yes' if w_pa <= pa_t and w_fl <= fl_t else 'no'}"
+    met = " | -" if fl_t is None else f" | {'yes' if w_pa <= pa_t and w_fl <= fl_t else 'no'}"  # dances: vs today's
     print(f"| {CLIP_NAME[clip]} | {az:.0f} | {fold} | {cell(0)} | {cell(1)} | {cell(2)} "
           f"| {np.mean([r[1]['time'] for r in rows]):.1f} / {np.mean([r[2]['time'] for r in rows]):.1f}{met} |",
           flush=True)

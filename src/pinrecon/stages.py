@@ -269,7 +269,7 @@ def _join_from_start(run: Run) -> str:
     joined = run.lifter(tracks)
     if getattr(joined, "lifted", None) is None:
         return ""
-    run.unjoined = (tracks, run.inputs.get("weights"))
+    run.unjoined = (tracks, weights)
     run.inputs["tracks"], run.inputs["weights"] = joined, replace(weights, lifted=weight, lifted_lengths=None)
     run.joined = True
     reports = dict(run.problem.reports)

@@ -69,8 +69,7 @@ class Weights:
         without a lifter's 3D) while the clip is solved with the default pose prior: they
         join from the start at this weight (as ``lifted``, times the lifter's confidence;
         without ``lifted_lengths``), and at ``lifted`` when the prior switches to its broader
-        mixture; ``None``: only then.
-        3 measured in ``bench/bench_lifter.py`` (``--seeds``).
+        mixture; ``None``: only then. 3 measured in ``bench/bench_lifter.py`` (``--seeds``).
     lifted_loss, lifted_loss_scale : their robust loss (``"cauchy"``, ``"huber"``, ``"l2"``)
         on the chord, and its scale in chord units (0.5: about 29 degrees), so a bone the
         lifter got wrong is outvoted by the image and the other rows.
