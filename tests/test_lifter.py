@@ -232,7 +232,7 @@ def test_the_lifter_joins_from_the_start_where_the_default_prior_holds():
     (the solve stage says so, the result carries their report). Against the true points the
     flipped limb segments and PA-MPJPE are within issue 42's bounds for the run (5 %, 30 mm;
     measured 4.2 % and 25.0 mm, 8.0 % and 28.5 mm without the lifter: bench_lifter.py
-    ``--seeds``). ``own_lifter=None`` and 3D keyframes leave it out."""
+    ``--seeds``)."""
     from pinrecon.metrics import flip_rate, pa_mpjpe
 
     tracks, cam, P, names = _short_held_out(90)
@@ -245,23 +245,25 @@ def test_the_lifter_joins_from_the_start_where_the_default_prior_holds():
     Pe = res.keypoints3d[:, res.figure.keypoint_index(names)]
     assert flip_rate(Pe, P, cam, segs) < 0.05
     assert pa_mpjpe(Pe, P) < 30.0  # mm
-    off = pr.reconstruct(fig, tracks, cam, weights=pr.Weights(own_lifter=None))
-    assert "lifter" not in {s.name: s.changed for s in off.stages}["solve"] and "lifted_bones" not in off.extras
-    keys = pr.Keyframes([pr.Keyframe(t, 0.05, points=dict(zip(names, P[t]))) for t in (0, 89)])
-    keyed = pr.reconstruct(fig, tracks, cam, keys)
-    assert "lifter" not in {s.name: s.changed for s in keyed.stages}["solve"]
 
 
+@pytest.mark.slow
 def test_a_prior_switch_takes_the_lifter_as_without_the_start_join(monkeypatch):
-    """Where the prior switches to its broader mixture (here every clip, ``switch_share``
-    patched), the lifter joined from the start leaves: the clip is solved with the lifter at
-    ``Weights.lifted`` exactly as when it never joined from the start (ground truth: the same
-    call with ``Weights(own_lifter=None)``), to the last digit."""
+    """``own_lifter=None`` and 3D keyframes leave the lifter out of the start; where the prior
+    switches to its broader mixture (here every clip, ``switch_share`` patched), the lifter
+    joined from the start leaves: the clip is solved with the lifter at ``Weights.lifted``
+    exactly as when it never joined from the start (ground truth: the same call with
+    ``Weights(own_lifter=None)``), to the last digit."""
     import sys
 
-    monkeypatch.setattr(sys.modules["pinrecon.reconstruct"], "switch_share", lambda *a: -1.0)
-    tracks, cam, _, _ = _short_held_out(60)
+    tracks, cam, P, names = _short_held_out(60)
     fig = pr.Figure.human()
+    off = pr.reconstruct(fig, tracks, cam, weights=pr.Weights(own_lifter=None))
+    assert "lifter" not in {s.name: s.changed for s in off.stages}["solve"] and "lifted_bones" not in off.extras
+    keys = pr.Keyframes([pr.Keyframe(t, 0.05, points=dict(zip(names, P[t]))) for t in (0, 59)])
+    keyed = pr.reconstruct(fig, tracks, cam, keys)
+    assert "lifter" not in {s.name: s.changed for s in keyed.stages}["solve"]
+    monkeypatch.setattr(sys.modules["pinrecon.reconstruct"], "switch_share", lambda *a: -1.0)
     joined = pr.reconstruct(fig, tracks, cam)
     never = pr.reconstruct(fig, tracks, cam, weights=pr.Weights(own_lifter=None))
     for res in (joined, never):
