@@ -158,6 +158,11 @@ def test_attach_lifter_puts_the_lifters_depths_on_the_detections_rays():
     assert attach_lifter(fig, tracks, cam, "none") is tracks
     assert attach_lifter(fig, tracks, cam, None) is tracks
     out = attach_lifter(fig, tracks, cam, "auto")
+    # a calibration file's camera, as the command line passes it, is the same camera
+    from pinrecon.io.calibration import CalibratedCamera
+
+    named = attach_lifter(fig, tracks, CalibratedCamera("cam", cam, None, True, "pinrecon-json"), "auto")
+    np.testing.assert_array_equal(named.lifted.points, out.lifted.points)
     L = out.lifted
     assert L is not None and L.frame == "camera" and set(L.names) == set(BODY) <= set(tracks.names)
     uv_true = tracks.select(L.names).points

@@ -325,7 +325,7 @@ def attach_lifter(figure, tracks, camera, lifter="auto", *, intrinsics: bool = T
     points (any layout :mod:`pinrecon.layouts` names them in), and with ``"auto"`` only for
     the generic human (``Figure.human()``, ``meta["generic"] == "human"``); several cameras
     see depth and are left alone. ``camera``: the view's camera (``Perspective`` or
-    ``Orthographic``); ``intrinsics=False`` when it is a guess (the auto camera): the lifter
+    ``Orthographic``, or a calibration file's ``CalibratedCamera``); ``intrinsics=False`` when it is a guess (the auto camera): the lifter
     then reads pixels, and the camera only places the points on their rays (:func:`on_rays`).
     """
     if lifter is None or lifter is False or isinstance(lifter, str) and lifter.strip().lower() == "none":
@@ -335,6 +335,8 @@ def attach_lifter(figure, tracks, camera, lifter="auto", *, intrinsics: bool = T
         return tracks
     one = tracks[0] if several else tracks
     cam = camera[0] if isinstance(camera, (list, tuple)) else camera
+    if not hasattr(cam, "R") and hasattr(cam, "camera"):  # a calibration file's camera (CalibratedCamera)
+        cam = cam.camera
     if getattr(one, "lifted", None) is not None or not hasattr(cam, "R"):
         return tracks
     auto = isinstance(lifter, str) and lifter.strip().lower() == "auto"
