@@ -196,18 +196,23 @@ def pose2sim_map_rows(path, weight=None, cameras=(1, 2, 3, 4), calibrated=False)
     return rows
 
 
+def map_case(a, model, fold, case):
+    """``(alone, without, with)`` on one case ``(tracks, camera, P, keyframes)``: the fold's
+    lifter alone, the MAP without the lifter and with it (as ``--weight``, ``--from-start``,
+    ``--seed`` say)."""
+    tracks, cam, P, keys = case
+    alone = score_lifted(lift(tracks, cam, model=model), P, cam)
+    d = run_map(tracks, cam, P, keyframes=keys)  # lifter="none"
+    w = run_map(tracks, cam, P, str(fold_path(a.folds, fold)), a.weight, a.from_start, keyframes=keys,
+                **({"seed": a.seed} if a.seed else {}))
+    assert not d["lifted"]
+    return alone, d, w
+
+
 def map_seeds(a, model, fold, clip, az):
     """One table row of ``--map --seeds``: the lifter alone, the MAP without it and with it, each
     the mean over the seeds' draws of the detector's faults, the flips' range beside."""
-    rows = []
-    for seed in a.seeds:
-        tracks, cam, P, keys = cmu_case(clip, az, a.keyframes, seed)
-        alone = score_lifted(lift(tracks, cam, model=model), P, cam)
-        d = run_map(tracks, cam, P, keyframes=keys)  # lifter="none"
-        w = run_map(tracks, cam, P, str(fold_path(a.folds, fold)), a.weight, a.from_start, keyframes=keys,
-                    **({"seed": a.seed} if a.seed else {}))
-        assert not d["lifted"]
-        rows.append((alone, d, w))
+    rows = [map_case(a, model, fold, cmu_case(clip, az, a.keyframes, seed)) for seed in a.seeds]
 
     def cell(k):
         pa, fl = [r[k]["pa"] for r in rows], [r[k]["flips"] for r in rows]
@@ -318,12 +323,8 @@ def main(argv=None):
                     if a.seeds:
                         map_seeds(a, models[fold], fold, clip, az)
                         continue
-                    tracks, cam, P, keys = cases.get((clip, az)) or cmu_case(clip, az, a.keyframes)
-                    alone = score_lifted(lift(tracks, cam, model=models[fold]), P, cam)
-                    d = run_map(tracks, cam, P, keyframes=keys)  # lifter="none"
-                    w = run_map(tracks, cam, P, str(fold_path(a.folds, fold)), a.weight, a.from_start, keyframes=keys,
-                                **({'seed': a.seed} if a.seed else {}))
-                    assert not d["lifted"]
+                    case = cases.get((clip, az)) or cmu_case(clip, az, a.keyframes)
+                    alone, d, w = map_case(a, models[fold], fold, case)
                     print(f"| {CLIP_NAME[clip]} | {az:.0f} | {fold} | {alone['pa']:.1f} / {alone['flips']:.1f} "
                           f"| {d['pa']:.1f} / {d['flips']:.1f} | {w['pa']:.1f} / {w['flips']:.1f} "
                           f"| {d['time']:.0f} / {w['time']:.0f} |", flush=True)
