@@ -161,8 +161,11 @@ def test_attach_lifter_puts_the_lifters_depths_on_the_detections_rays():
     # a calibration file's camera, as the command line passes it, is the same camera
     from pinrecon.io.calibration import CalibratedCamera
 
-    named = attach_lifter(fig, tracks, CalibratedCamera("cam", cam, None, True, "pinrecon-json"), "auto")
+    calibrated = CalibratedCamera("cam", cam, None, True, "pinrecon-json")
+    named = attach_lifter(fig, tracks, calibrated, "auto")
     np.testing.assert_array_equal(named.lifted.points, out.lifted.points)
+    np.testing.assert_array_equal(lift(tracks, calibrated).points, lift(tracks, cam).points)
+    assert not np.array_equal(lift(tracks, None).points, lift(tracks, cam).points)  # the intrinsics count
     L = out.lifted
     assert L is not None and L.frame == "camera" and set(L.names) == set(BODY) <= set(tracks.names)
     uv_true = tracks.select(L.names).points

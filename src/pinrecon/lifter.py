@@ -30,6 +30,7 @@ import numpy as np
 
 from ._resources import model_path
 from .errors import InputError
+from .io.calibration import CalibratedCamera
 from .layouts import normalise_point_name
 from .lifted import Lifted
 
@@ -207,8 +208,15 @@ def _load(path: str) -> LifterModel:
     return LifterModel(layers, meta, path)
 
 
+def _bare(camera):
+    """The camera itself of a calibration file's :class:`~pinrecon.io.calibration.CalibratedCamera`
+    (as ``load_cameras`` and ``pinrecon reconstruct --camera FILE`` give it), else ``camera``."""
+    return camera.camera if isinstance(camera, CalibratedCamera) else camera
+
+
 def _camera_ray(camera, uv: np.ndarray) -> np.ndarray | None:
     """Normalised camera coordinates of pixels ``uv`` when ``camera`` is a perspective one."""
+    camera = _bare(camera)
     if camera is None or not hasattr(camera, "normalized"):
         return None
     return camera.normalized(uv)
@@ -221,7 +229,8 @@ def lift(tracks, camera=None, *, model: LifterModel | None = None) -> Lifted:
     ``tracks``: :class:`pinrecon.Tracks` whose names (any layout the human keypoint maps know)
     include at least some of the 12 COCO-17 body points; missing points (NaN, confidence 0)
     are allowed. ``camera``: a :class:`pinrecon.cameras.Perspective` (its intrinsics make the
-    lifter's perspective cues exact), or ``None``. Returns the 12 points relative to the hips'
+    lifter's perspective cues exact; a calibration file's ``CalibratedCamera`` is its camera),
+    or ``None``. Returns the 12 points relative to the hips'
     midpoint, metres for a figure whose limb segments average 40 cm, and per-point confidence.
     """
     model = model or load_lifter()
@@ -263,6 +272,7 @@ def on_rays(lifted: Lifted, tracks, camera) -> Lifted:
     units (least squares). Points the tracks miss keep the lifter's position; a point's
     confidence is the smaller of the lifter's and the detection's. Unit-free as the lifter.
     """
+    camera = _bare(camera)
     names = [normalise_point_name(n) for n in tracks.names]
     index = {n: i for i, n in enumerate(names)}
     K = len(lifted.names)
@@ -325,8 +335,9 @@ def attach_lifter(figure, tracks, camera, lifter="auto", *, intrinsics: bool = T
     points (any layout :mod:`pinrecon.layouts` names them in), and with ``"auto"`` only for
     the generic human (``Figure.human()``, ``meta["generic"] == "human"``); several cameras
     see depth and are left alone. ``camera``: the view's camera (``Perspective`` or
-    ``Orthographic``, or a calibration file's ``CalibratedCamera``); ``intrinsics=False`` when it is a guess (the auto camera): the lifter
-    then reads pixels, and the camera only places the points on their rays (:func:`on_rays`).
+    ``Orthographic``, or a calibration file's ``CalibratedCamera``); ``intrinsics=False`` when
+    it is a guess (the auto camera): the lifter then reads pixels, and the camera only places
+    the points on their rays (:func:`on_rays`).
     """
     if lifter is None or lifter is False or isinstance(lifter, str) and lifter.strip().lower() == "none":
         return tracks
@@ -334,9 +345,7 @@ def attach_lifter(figure, tracks, camera, lifter="auto", *, intrinsics: bool = T
     if several and len(tracks) != 1:
         return tracks
     one = tracks[0] if several else tracks
-    cam = camera[0] if isinstance(camera, (list, tuple)) else camera
-    if not hasattr(cam, "R") and hasattr(cam, "camera"):  # a calibration file's camera (CalibratedCamera)
-        cam = cam.camera
+    cam = _bare(camera[0] if isinstance(camera, (list, tuple)) else camera)
     if getattr(one, "lifted", None) is not None or not hasattr(cam, "R"):
         return tracks
     auto = isinstance(lifter, str) and lifter.strip().lower() == "auto"
