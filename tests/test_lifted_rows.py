@@ -72,18 +72,35 @@ def _fd_jacobian(f, fig, Q, eps=1e-6):
     return np.stack(cols, axis=-1)
 
 
+def _chords(row, fig, Q, R, g=None, props=None):
+    """The rows' residuals as the module's docstring writes them, three per bone:
+    ``sqrt(w c) (d - R l)`` (l2 loss), computed here from the keypoints."""
+    P = fig.keypoints(Q) if props is None else props.keypoints(g, Q)
+    v = P[:, row.bones[:, 1]] - P[:, row.bones[:, 0]]
+    d = v / np.linalg.norm(v, axis=-1, keepdims=True)
+    return (np.sqrt(row.w)[..., None] * (d - row.L @ R.T)).ravel()
+
+
 @pytest.mark.parametrize("frame", ["camera", "unknown"])
-def test_jacobian_matches_manifold_finite_differences(setting, frame):
-    """d r / d v_t against central differences of pin.integrate; an unknown frame's rotation
-    held at its profiled value (the rows' Jacobian is the one at fixed R)."""
+def test_normal_equations_match_manifold_finite_differences(setting, frame):
+    """The rows' J^T J and J^T r are those of the three chord residuals per bone, whose
+    Jacobian is taken by central differences of pin.integrate (two rows per bone carry
+    them: the chord's part along the bone has no derivative); 0.5 |r|^2 per frame plus that
+    part is ``group_cost``. An unknown frame's rotation held at its profiled value."""
     fig, Q, cam = setting
     row, _ = _lifted_row(fig, Q, cam, frame)
     R = row.rotation(State(fig, Q, np.arange(T), False))
     b = _eval(row, fig, Q, True, R=R)
+    assert b.r.shape == (T, 2 * len(row.bones))
     J = dense_jacobian([b], T, fig.nv)[0]
-    fd = _fd_jacobian(lambda QQ: _eval(row, fig, QQ, False, R=R).r.ravel(), fig, Q)
-    assert np.abs(J).max() > 0.1
-    assert np.abs(J - fd).max() <= 1e-6 * np.abs(J).max()
+    fd = _fd_jacobian(lambda QQ: _chords(row, fig, QQ, R), fig, Q)
+    e = _chords(row, fig, Q, R)
+    assert np.abs(fd).max() > 0.1
+    H, H_fd = J.T @ J, fd.T @ fd
+    assert np.abs(H - H_fd).max() <= 1e-6 * np.abs(H_fd).max()
+    assert np.abs(J.T @ b.r.ravel() - fd.T @ e).max() <= 1e-6 * np.abs(fd.T @ e).max()
+    assert np.allclose(b.group_cost, 0.5 * (e.reshape(T, -1) ** 2).sum(1), rtol=1e-12)
+    assert np.isclose(b.cost, 0.5 * e @ e, rtol=1e-12)
 
 
 @pytest.mark.parametrize("frame", ["camera", "unknown"])
@@ -105,19 +122,24 @@ def test_gradient_of_the_profiled_robust_cost_is_exact(setting, frame, loss):
 
 
 def test_proportions_columns_match_finite_differences(setting):
-    """With the figure's segment scale factors as globals: d r / d g by central differences."""
+    """With the figure's segment scale factors as globals: the rows' Jg^T Jg and Jg^T r
+    against central differences of the chord residuals in g."""
     fig, Q, cam = setting
     props = Proportions.default(fig)
     g = 0.1 * np.random.default_rng(5).normal(size=props.n)
     row, _ = _lifted_row(fig, Q, cam, "camera")
     b = _eval(row, fig, Q, True, g=g, props=props)
     eps = 1e-6
-    fd = np.stack([(_eval(row, fig, Q, False, g=g + eps * e, props=props).r - _eval(row, fig, Q, False, g=g - eps * e,
-                    props=props).r).ravel() / (2 * eps) for e in np.eye(props.n)], axis=-1)
-    Jg = np.zeros_like(fd)
-    Jg[:, b.gcols] = b.Jg.reshape(fd.shape[0], -1)
+    R = row.R_fixed
+    fd = np.stack([(_chords(row, fig, Q, R, g + eps * e, props) - _chords(row, fig, Q, R, g - eps * e, props))
+                   / (2 * eps) for e in np.eye(props.n)], axis=-1)
+    Jg = np.zeros((b.r.size, props.n))
+    Jg[:, b.gcols] = b.Jg.reshape(b.r.size, -1)
     assert np.abs(fd).max() > 0.01
-    assert np.abs(Jg - fd).max() <= 1e-6 * np.abs(fd).max()
+    H, H_fd = Jg.T @ Jg, fd.T @ fd
+    assert np.abs(H - H_fd).max() <= 1e-6 * np.abs(H_fd).max()
+    grad_fd = fd.T @ _chords(row, fig, Q, R, g, props)
+    assert np.abs(Jg.T @ b.r.ravel() - grad_fd).max() <= 1e-6 * np.abs(grad_fd).max()
 
 
 def test_procrustes_recovers_a_rotation_from_noisy_directions():

@@ -18,7 +18,6 @@ from pinrecon.rows import (
     State,
     smoothing_sigmas,
 )
-from pinrecon.rows.lifted import LiftedPose, lifted_bones
 from pinrecon.synthetic import project_tracks, smooth_motion
 
 T = 5
@@ -40,19 +39,12 @@ def _rows(fig, Q, ortho, persp):
     k = fig.keypoint_index(tr.names)
     ones = np.ones((T, len(k)))
     uv_p = persp.project(fig.keypoints(Q)[:, k]) + 3.0
-    bones = np.array([fig.keypoint_index(list(b)) for b in lifted_bones(fig, fig.keypoint_names)])
-    d = np.diff(fig.keypoints(Q)[:, bones], axis=2)[:, :, 0] + 0.05
-    L = (d / np.linalg.norm(d, axis=-1, keepdims=True)) @ persp.R.T  # camera axes, off the truth
-    conf = np.linspace(0.2, 1.0, T * len(bones)).reshape(T, -1)
     return {
         "measurement/orthographic": Measurement2D(ortho, np.arange(T), k, tr.points, ones),
         "measurement/perspective": Measurement2D(persp, np.arange(T), k, uv_p, ones),
         "measurement/missing+confidence": Measurement2D(
             ortho, np.arange(T), k, np.where(np.arange(len(k))[None, :, None] % 3 == 0, np.nan, tr.points), 0.5 * ones
         ),
-        "lifted/camera": LiftedPose(np.arange(T), bones, L, conf, persp.R.T, loss="l2"),
-        # an unknown frame: the Jacobian at the rotation held (tests/test_lifted_rows.py: the profiled one)
-        "lifted/unknown, rotation held": LiftedPose(np.arange(T), bones, L @ persp.R, conf, np.eye(3), loss="l2"),
         "points3d": Points3D([1, 3], k, fig.keypoints(Q[[1, 3]])[:, k] + 0.05, 0.02),
         "limits": JointLimits(fig, T, 0.01),
         "smoothing/R3xSO3": Smoothing(fig, T, 1 / 30, smoothing_sigmas(fig)),
@@ -77,8 +69,6 @@ def _evaluate(row, fig, Q, jacobian):
         "measurement/orthographic",
         "measurement/perspective",
         "measurement/missing+confidence",
-        "lifted/camera",
-        "lifted/unknown, rotation held",
         "points3d",
         "limits",
         "smoothing/R3xSO3",
@@ -88,6 +78,8 @@ def _evaluate(row, fig, Q, jacobian):
     ],
 )
 def test_row_jacobian_matches_manifold_finite_differences(setting, name):
+    """d r / d v against central differences (the lifted-pose rows' two rows per bone are not
+    the derivative's own residuals, their normal equations are: tests/test_lifted_rows.py)."""
     fig, Q, ortho, persp = setting
     row = _rows(fig, Q, ortho, persp)[name]
     blocks = _evaluate(row, fig, Q, True)

@@ -50,6 +50,8 @@ class RowBlock:
     Jg : (N, m, c_g) derivative of r[n] w.r.t. the global unknowns ``g[gcols]``, or
         ``None`` (no dependence on globals, or not requested).
     gcols : (c_g,) indices into the global vector ``g`` that ``Jg`` covers.
+    group_cost : (N,) each row group's ``0.5 |r|^2`` when ``r`` leaves out residuals
+        without a derivative (the lifted-pose rows' part along the bone), else ``None``.
     """
 
     frames: np.ndarray
@@ -61,6 +63,7 @@ class RowBlock:
     cost_value: float | None = None
     Jg: np.ndarray | None = None
     gcols: np.ndarray | None = None
+    group_cost: np.ndarray | None = None
 
     @property
     def cost(self) -> float:

@@ -39,7 +39,10 @@ handedness is kept, which is what tells a limb from its mirror image.
 
 The derivative (``docs/derivations.md``, lifted-pose rows): ``dd/dv = (I - d d^T) / |p_b -
 p_a| (J_b - J_a)`` with ``J_k`` the keypoint Jacobian; with the figure's proportions as
-global unknowns the same projection of ``dp_b/dg - dp_a/dg``.
+global unknowns the same projection of ``dp_b/dg - dp_a/dg``. It lies in the plane normal to
+``d``, so a bone's block holds two rows, ``U^T r`` for ``U`` a basis of that plane: the same
+``J^T J`` and ``J^T r`` as the three rows of ``r``; ``r``'s part along ``d`` has no derivative
+and counts in the cost and in ``RowBlock.group_cost``.
 """
 
 from __future__ import annotations
@@ -243,24 +246,42 @@ class LiftedPose(RowKind):
         s = np.sum(e * e, axis=-1)
         rho, drho = self._robust(s)
         scale = np.sqrt(self.w * drho)  # (N, B)
+        # two rows per bone, e's components across d (U: an orthonormal basis of the plane
+        # normal to d): dd/dv lies in that plane, so J^T J and J^T r are those of the three
+        # rows of e; e's part along d (|e|^2 / 2) has no derivative and stays in the cost
+        U = _normal_basis(d)  # (N, B, 3, 2)
         N, B = e.shape[:2]
-        r = (e * scale[..., None]).reshape(N, 3 * B)
+        r = (np.einsum("nbij,nbi->nbj", U, e) * scale[..., None]).reshape(N, 2 * B)
+        wr = self.w * drho
         cost = 0.5 * float(np.sum(self.w * rho))
         J = Jg = gcols = None
         cols = np.arange(state.figure.nv)
         if jacobian:
             slots = state.slot[self.frames]
-            A = (np.eye(3) - d[..., :, None] * d[..., None, :]) / length[..., None, None]
-            A = A * scale[..., None, None]  # (N, B, 3, 3)
+            A = U.swapaxes(-1, -2) * (scale / length)[..., None, None]  # (N, B, 2, 3)
             kps = np.r_[self.bones[:, 1], self.bones[:, 0]]
             AA = np.concatenate([A, -A], axis=1)
             cols = supported_columns(state.figure, self.keypoints)
-            Jp = state.point_jacobians(slots, kps, AA, None, cols)  # (N, 2B, 3, c)
-            J = (Jp[:, :B] + Jp[:, B:]).reshape(N, 1, 3 * B, -1)
+            Jp = state.point_jacobians(slots, kps, AA, None, cols)  # (N, 2B, 2, c)
+            J = (Jp[:, :B] + Jp[:, B:]).reshape(N, 1, 2 * B, -1)
             if state.has_global_points:
                 Gp = state.global_point_jacobians(slots, kps, AA)
-                Jg, gcols = (Gp[:, :B] + Gp[:, B:]).reshape(N, 3 * B, -1), state.proportion_cols
-        return RowBlock(self.frames[:, None], r, J, cols, self.name, cost_value=cost, Jg=Jg, gcols=gcols)
+                Jg, gcols = (Gp[:, :B] + Gp[:, B:]).reshape(N, 2 * B, -1), state.proportion_cols
+        return RowBlock(self.frames[:, None], r, J, cols, self.name, cost_value=cost, Jg=Jg, gcols=gcols,
+                        group_cost=0.5 * np.sum(wr * s, axis=1))
+
+
+def _normal_basis(d: np.ndarray) -> np.ndarray:
+    """(..., 3, 2) two orthonormal vectors normal to each unit vector ``d`` (..., 3), without
+    a branch (Duff et al. 2017, "Building an orthonormal basis, revisited")."""
+    x, y, z = d[..., 0], d[..., 1], d[..., 2]
+    sg = np.where(z >= 0.0, 1.0, -1.0)
+    a = -1.0 / (sg + z)
+    b = x * y * a
+    out = np.empty(d.shape + (2,))
+    out[..., 0, 0], out[..., 1, 0], out[..., 2, 0] = 1.0 + sg * x * x * a, sg * b, -sg * x
+    out[..., 0, 1], out[..., 1, 1], out[..., 2, 1] = b, sg + y * y * a, -y
+    return out
 
 
 #: bones whose length the figure keeps over the clip (nearly: the sides cross the spine), for

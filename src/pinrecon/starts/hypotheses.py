@@ -580,7 +580,9 @@ def frame_costs(problem, Q) -> np.ndarray:
         for blk in b if isinstance(b, (list, tuple)) else [b]:
             if blk is None or not blk.r.size or not blk.frames.size:
                 continue
-            e = 0.5 * (np.asarray(blk.r).reshape(len(blk.frames), -1) ** 2).sum(1) / blk.frames.shape[1]
+            e = blk.group_cost if blk.group_cost is not None else \
+                0.5 * (np.asarray(blk.r).reshape(len(blk.frames), -1) ** 2).sum(1)
+            e = e / blk.frames.shape[1]
             for i in range(blk.frames.shape[1]):
                 np.add.at(c, blk.frames[:, i], e)
     return c
