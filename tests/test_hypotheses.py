@@ -255,6 +255,28 @@ def test_search_keeps_a_right_base(walk_problem):
     assert flip_rate(fig.keypoints(Q0)[:, idx], P, cam, segs) <= f_direct + 0.02 < 0.12
 
 
+def test_the_base_competes_unless_told_not_to(walk_problem):
+    """``guard_base`` (default) solves the base as long as the candidates and keeps the
+    cheaper: its start's MAP cost is no higher than the unguarded search's, and equal to the
+    digit where the base lost; ``guard_base=False`` (the solve stage's, with pinrecon's lifter
+    from the start) leaves the base out of the report's alternatives."""
+    fig, Q, cam, P, problem = walk_problem
+    kw = dict(torso=False, planarity=False, turns=False)
+    Qg, rg = search_hypotheses(problem, base=Q, **kw)
+    Qn, rn = search_hypotheses(problem, base=Q, guard_base=False, **kw)
+    assert "base" in rg.alternatives and "base" not in rn.alternatives
+
+    def cost(Qs):
+        blocks = problem.evaluate(Qs, False)
+        return sum(b.cost for x in blocks for b in (x if isinstance(x, list) else [x]))
+
+    assert cost(Qg) <= cost(Qn) + 1e-6 * abs(cost(Qn))
+    if rg.chosen != "base":
+        assert np.array_equal(Qg, Qn)
+    else:
+        assert rg.alternatives["base"] < rg.cost
+
+
 @pytest.mark.slow
 def test_the_flipped_trunk_searched_beside_is_the_one_searched_here(walk_problem, monkeypatch, spy_beside):
     """The flipped trunk's candidate does not depend on the base's: where a CPU is spare a

@@ -218,7 +218,8 @@ def _solve(run: Run) -> str:
             warnings.simplefilter("always")
         auto = isinstance(run.start, str) and run.start == "auto"
         what = "start and batch solve" + _join_from_start(run)
-        start = functools.partial(auto_start, lifted=False) if run.joined and auto else run.start
+        guard = run.unjoined is None  # joined from the start, the search does not lose to its base
+        start = functools.partial(auto_start, lifted=False, guard_base=guard) if run.joined and auto else run.start
         base = _judged_base(run)
         verdict = early_verdict(None if base is None else base[1], run.switch_limit)
         if verdict is None and run.started is None and not _lifted_start(run):
@@ -231,8 +232,8 @@ def _solve(run: Run) -> str:
         if run.started is not None:  # the lifted start and lengths of before the prior's switch
             q0, run.problem = run.started[0], _remade(run.problem, run.started[1], run.inputs, run.mode)
         else:
-            q0 = initial_trajectory(run.problem, start if base is None else functools.partial(hypotheses_start,
-                                                                                              base=base[0]))
+            q0 = initial_trajectory(run.problem, start if base is None else functools.partial(
+                hypotheses_start, base=base[0], guard_base=guard))
             if run.lengths and run.measure_lengths is not None:
                 run.problem, q0 = run.measure_lengths(run.problem, q0, start, run.inputs)
             if _lifted_start(run):

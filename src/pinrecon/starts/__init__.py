@@ -49,12 +49,12 @@ def sparse_keyframes(problem: ReconstructionProblem, max_gap_s: float = 1.0) -> 
     return bool(gaps.max() > max_gap_s * float(problem.fps or 1.0))
 
 
-def auto_start(problem: ReconstructionProblem, lifted: bool = True) -> np.ndarray:
+def auto_start(problem: ReconstructionProblem, lifted: bool = True, guard_base: bool = True) -> np.ndarray:
     """The multi-hypothesis start for one camera's 2D tracks without keyframes or with
     sparse ones (a stretch of more than a second without any, :func:`sparse_keyframes`);
     the keyframe start with denser keyframes; the rest-pose start otherwise. With ``lifted``
     (default) and lifted-pose rows in the problem, the lifted start (:mod:`.lifted`) instead
-    of the multi-hypothesis one.
+    of the multi-hypothesis one. ``guard_base``: as :func:`~.hypotheses.search_hypotheses`.
 
     Measured in ``bench/bench_real.py`` (the calibrated human on detector-like tracks,
     mean of two views): without keyframes the multi-hypothesis start took the walk from
@@ -65,7 +65,9 @@ def auto_start(problem: ReconstructionProblem, lifted: bool = True) -> np.ndarra
     the run (31.0 / 4.1 % against 31.0 / 4.2 %) and better on the dance (116 against 147
     mm), and on the lab case it picks the planarity seed (walk 23.3 -> 1.1 % flips)."""
     if _one_view_sparse(problem):
-        return lifted_start(problem) if lifted and has_lifted(problem) else hypotheses_start(problem)
+        if lifted and has_lifted(problem):
+            return lifted_start(problem)
+        return hypotheses_start(problem, guard_base=guard_base)
     if problem.keyframes is not None and len(problem.keyframes):
         return keyframe_start(problem)
     return rest_start(problem)

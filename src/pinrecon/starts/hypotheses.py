@@ -440,6 +440,7 @@ def search_hypotheses(
     splice_sigma_m: float = 0.05,
     acc_weight: float = 0.0,
     turns: bool = True,
+    guard_base: bool = True,
 ) -> tuple[np.ndarray, HypothesisReport]:
     """The multi-hypothesis start and its report (see the module docstring).
 
@@ -476,6 +477,9 @@ def search_hypotheses(
     turns : the chosen start wound through its fast turns (:func:`~pinrecon.starts.turns.
         wind_turns`: a whole turn more or less about the body's up axis where the root turns
         faster than 300 degrees per second, kept when the MAP cost falls; ``report.turns``).
+    guard_base : the base alone competes, solved as long as the candidates (False: not; the
+        solve stage's choice where pinrecon's lifter joined from the start, whose searches never
+        lost to the base on bench_lifter's walk, run and dance: bench/README.md).
     splice_sigma_m : the splice's switch between the trunk candidates at frame t costs
         ``0.5 sum_k |p_k^A(t) - p_k^B(t)|^2 / splice_sigma_m^2`` (0: no splice). The
         spliced candidate's frames from the flipped trunk are ``report.trunk_switches``
@@ -527,7 +531,7 @@ def search_hypotheses(
         flipped = Beside(candidate, Q_base, "trunk flipped", True, fork=forkable(T))
     try:
         results = [candidate(Q_base, "limbs")]
-        base_long = solved_long(Q_base)  # below: made here while the child searches (its search takes longer)
+        base_long = solved_long(Q_base) if guard_base else None  # made here while the child searches
         results += [flipped.result()] if flipped is not None else []
     finally:
         if flipped is not None:
@@ -551,9 +555,9 @@ def search_hypotheses(
         report.torso_gap = float(results[order[1]][0] - cost)
         report.torso_flipped = won == "trunk flipped"
         report.trunk_switches = switches if won == "trunk spliced" else []
-    # the search only proposes starts: it must not lose to the base solved as long, nor,
+    # the search only proposes starts: it must not lose to the base solved as long (guard_base), nor,
     # with keyframes, to the planarity seed (which decides whole planar spans from them)
-    others = [("base", Q_base)]
+    others = [("base", Q_base)] if guard_base else []
     if planarity and problem.keyframes is not None and len(problem.keyframes):
         seed = _planarity_seed(problem)
         if seed is not None:
@@ -647,11 +651,12 @@ def _q_of(figure, v_mask):
     return np.array(out, int)
 
 
-def hypotheses_start(problem: ReconstructionProblem, base: np.ndarray | None = None) -> np.ndarray:
+def hypotheses_start(problem: ReconstructionProblem, base: np.ndarray | None = None,
+                     guard_base: bool = True) -> np.ndarray:
     """The multi-hypothesis start (``seed="hypotheses"``); its :class:`HypothesisReport`
     is left in ``problem.reports["hypotheses"]``. ``base``: the search's base when already
-    solved (:func:`base_solve` of ``problem``)."""
-    Q0, report = search_hypotheses(problem, base=base)
+    solved (:func:`base_solve` of ``problem``); ``guard_base``: as :func:`search_hypotheses`."""
+    Q0, report = search_hypotheses(problem, base=base, guard_base=guard_base)
     reports = getattr(problem, "reports", None)
     if reports is not None:
         reports["hypotheses"] = report
