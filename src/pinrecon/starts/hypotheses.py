@@ -49,8 +49,9 @@ that smoother, made tractable by the figure's structure (geometry in :mod:`.limb
    programming over each frame's share of their MAP cost, a switch costing the distance
    between their keypoints there (so it happens where they nearly coincide).
 6. **Choice.** Every candidate (limbs on the base, limbs on the flipped trunk, their
-   splice, the base alone, and with keyframes the planarity seed) is solved
-   ``final_options`` long with the whole problem; the lowest MAP cost is the start.
+   splice, the base alone unless ``guard_base=False``, and with keyframes the planarity
+   seed) is solved ``final_options`` long with the whole problem; the lowest MAP cost is the
+   start.
 7. **Turns.** Where the chosen start's root turns fast (a pirouette), it is wound a whole
    turn either way and kept where the MAP cost falls (:mod:`.turns`): a turn taken the
    wrong way round, or a spurious one, is the trunk's own discrete ambiguity over time.
