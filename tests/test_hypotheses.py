@@ -260,8 +260,8 @@ def test_the_base_competes_unless_told_not_to(walk_problem):
     cheaper: its start's MAP cost is no higher than the unguarded search's, and equal to the
     digit where the base lost; ``guard_base=False`` (the solve stage's, with pinrecon's lifter
     from the start) leaves the base out of the report's alternatives."""
-    fig, Q, cam, P, problem = walk_problem
-    kw = dict(torso=False, planarity=False, turns=False)
+    _, Q, _, _, problem = walk_problem
+    kw = {"torso": False, "planarity": False, "turns": False}
     Qg, rg = search_hypotheses(problem, base=Q, **kw)
     Qn, rn = search_hypotheses(problem, base=Q, guard_base=False, **kw)
     assert "base" in rg.alternatives and "base" not in rn.alternatives

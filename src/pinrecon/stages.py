@@ -218,7 +218,7 @@ def _solve(run: Run) -> str:
             warnings.simplefilter("always")
         auto = isinstance(run.start, str) and run.start == "auto"
         what = "start and batch solve" + _join_from_start(run)
-        guard = run.unjoined is None  # joined from the start, the search does not lose to its base
+        guard = run.unjoined is None  # the lifter joined from the start: the search's base is no candidate
         start = functools.partial(auto_start, lifted=False, guard_base=guard) if run.joined and auto else run.start
         base = _judged_base(run)
         verdict = early_verdict(None if base is None else base[1], run.switch_limit)

@@ -252,7 +252,6 @@ class LiftedPose(RowKind):
         U = _normal_basis(d)  # (N, B, 3, 2)
         N, B = e.shape[:2]
         r = (np.einsum("nbij,nbi->nbj", U, e) * scale[..., None]).reshape(N, 2 * B)
-        wr = self.w * drho
         cost = 0.5 * float(np.sum(self.w * rho))
         J = Jg = gcols = None
         cols = np.arange(state.figure.nv)
@@ -268,7 +267,7 @@ class LiftedPose(RowKind):
                 Gp = state.global_point_jacobians(slots, kps, AA)
                 Jg, gcols = (Gp[:, :B] + Gp[:, B:]).reshape(N, 2 * B, -1), state.proportion_cols
         return RowBlock(self.frames[:, None], r, J, cols, self.name, cost_value=cost, Jg=Jg, gcols=gcols,
-                        group_cost=0.5 * np.sum(wr * s, axis=1))
+                        group_cost=0.5 * np.sum(self.w * drho * s, axis=1))
 
 
 def _normal_basis(d: np.ndarray) -> np.ndarray:

@@ -478,9 +478,8 @@ def search_hypotheses(
     turns : the chosen start wound through its fast turns (:func:`~pinrecon.starts.turns.
         wind_turns`: a whole turn more or less about the body's up axis where the root turns
         faster than 300 degrees per second, kept when the MAP cost falls; ``report.turns``).
-    guard_base : the base alone competes, solved as long as the candidates (False: not; the
-        solve stage's choice where pinrecon's lifter joined from the start, whose searches never
-        lost to the base on bench_lifter's walk, run and dance: bench/README.md).
+    guard_base : the base alone competes, solved as long as the candidates; False: it does not
+        (the solve stage's choice where pinrecon's lifter joined from the start, bench/README.md).
     splice_sigma_m : the splice's switch between the trunk candidates at frame t costs
         ``0.5 sum_k |p_k^A(t) - p_k^B(t)|^2 / splice_sigma_m^2`` (0: no splice). The
         spliced candidate's frames from the flipped trunk are ``report.trunk_switches``
