@@ -142,6 +142,20 @@ def test_proportions_columns_match_finite_differences(setting):
     assert np.abs(Jg.T @ b.r.ravel() - grad_fd).max() <= 1e-6 * np.abs(grad_fd).max()
 
 
+def test_the_normal_basis_is_orthonormal_and_normal_at_every_direction():
+    """The two rows' basis ``U`` (3 x 2) of the plane normal to a bone: ``U^T d = 0`` and
+    ``U^T U = I`` for random directions and the poles and equator where a branchy formula fails."""
+    from pinrecon.rows.lifted import _normal_basis
+
+    rng = np.random.default_rng(4)
+    d = rng.normal(size=(500, 3))
+    d = np.r_[d, [[0, 0, 1], [0, 0, -1], [1, 0, 0], [0, -1, 0], [0, 1e-12, -1], [1e-9, 0, 1]]]
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    U = _normal_basis(d)
+    assert np.abs(np.einsum("nij,ni->nj", U, d)).max() < 1e-12
+    assert np.abs(np.einsum("nij,nik->njk", U, U) - np.eye(2)).max() < 1e-12
+
+
 def test_procrustes_recovers_a_rotation_from_noisy_directions():
     rng = np.random.default_rng(1)
     L = rng.normal(size=(200, 3))
