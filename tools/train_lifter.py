@@ -138,16 +138,40 @@ def look_at(eye, target, roll):
     return Rz @ R
 
 
-def sample(clips, weights, B: int, rng: np.random.Generator, faults: bool = True):
-    """A batch: features (B, 81, N_FEATURES) and targets (B, 12, 3) in limb lengths."""
+def spun(P: np.ndarray, dt: np.ndarray, rng: np.random.Generator, share: float, turns: float) -> np.ndarray:
+    """``P`` (B, SEG, K, 3), a ``share`` of the samples turned about the vertical through the hips'
+    midpoint at a steady rate of 0.25-``turns`` turns a second either way (``dt``: (B,) seconds
+    between the samples' frames): spins and pirouettes the clips do not hold."""
+    pick = np.flatnonzero(rng.random(len(P)) < share)
+    if not len(pick):
+        return P
+    rate = 2 * np.pi * rng.uniform(0.25, turns, len(pick)) * rng.choice([-1.0, 1.0], len(pick))
+    theta = rate[:, None] * dt[pick, None] * (np.arange(SEG) - SEG // 2)[None]  # (n, SEG), 0 mid-window
+    c, s = np.cos(theta)[..., None], np.sin(theta)[..., None]
+    centre = P[pick][:, :, [6, 7]].mean(2, keepdims=True)
+    x, z = P[pick, ..., 0] - centre[..., 0], P[pick, ..., 2] - centre[..., 2]
+    P = P.copy()
+    P[pick, ..., 0] = centre[..., 0] + c * x + s * z
+    P[pick, ..., 2] = centre[..., 2] - s * x + c * z
+    return P
+
+
+def sample(clips, weights, B: int, rng: np.random.Generator, faults: bool = True,
+           spin: float = 0.0, turns: float = 2.0):
+    """A batch: features (B, 81, N_FEATURES) and targets (B, 12, 3) in limb lengths;
+    ``spin``: the share of samples turned by :func:`spun`."""
     K = len(BODY)
     P = np.empty((B, SEG, K, 3))
+    dt = np.empty(B)
     for b in range(B):
         c = clips[rng.choice(len(clips), p=weights)]
         st = max(1, round(c["fps"] / rng.uniform(20.0, 50.0)))
         T = len(c["P"])
         t0 = rng.integers(T)
         P[b] = c["P"][np.clip(t0 + st * (np.arange(SEG) - SEG // 2), 0, T - 1)]
+        dt[b] = st / c["fps"]
+    if spin > 0:
+        P = spun(P, dt, rng, spin, turns)
     mirror = rng.random(B) < 0.5
     P[mirror] = P[mirror][:, :, FLIP] * np.array([-1.0, 1.0, 1.0])
     # bones scaled: hips and shoulders about their midpoints, torso, then each limb outwards
@@ -366,6 +390,9 @@ def main(argv=None):
     ap.add_argument("--lr", type=float, default=2e-3)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--threads", type=int, default=1)
+    ap.add_argument("--spin", type=float, default=0.0,
+                    help="share of training samples turned about the vertical (spins; default 0)")
+    ap.add_argument("--turns", type=float, default=2.0, help="the spins' fastest rate, turns a second")
     ap.add_argument("--init", help="go on training from this weights file (the same --hold-out: checked)")
     a = ap.parse_args(argv)
     import torch
@@ -397,7 +424,7 @@ def main(argv=None):
         model.train()
         if init is not None:
             freeze_norms(model)
-        X, Y = sample(train, w, a.batch, rng)
+        X, Y = sample(train, w, a.batch, rng, spin=a.spin, turns=a.turns)
         mpjpe, nll = loss_terms(model(torch.from_numpy(X)), torch.from_numpy(Y))
         loss = mpjpe + 0.1 * nll
         opt.zero_grad()
