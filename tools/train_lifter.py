@@ -156,43 +156,10 @@ def spun(P: np.ndarray, dt: np.ndarray, rng: np.random.Generator, share: float, 
     return P
 
 
-def _trunk(P: np.ndarray) -> np.ndarray:
-    """(..., 3, 3) the trunk's axes per frame (columns: left-right, hips to shoulders, front)."""
-    up = P[..., [0, 1], :].mean(-2) - P[..., [6, 7], :].mean(-2)
-    side = (P[..., 0, :] - P[..., 1, :]) + (P[..., 6, :] - P[..., 7, :])
-    y = up / np.linalg.norm(up, axis=-1, keepdims=True)
-    x = side - (side * y).sum(-1, keepdims=True) * y
-    x /= np.linalg.norm(x, axis=-1, keepdims=True)
-    return np.stack([x, y, np.cross(x, y)], axis=-1)
-
-
-#: the chains :func:`limbs_swapped` exchanges: (root, middle, end) of each arm and leg
-ARMS = ((0, 2, 4), (1, 3, 5))
-LEGS = ((6, 8, 10), (7, 9, 11))
-
-
-def limbs_swapped(P: np.ndarray, rng: np.random.Generator, share: float, chains) -> np.ndarray:
-    """``P`` (B, SEG, K, 3), a ``share`` of the samples given the limbs ``chains`` (:data:`ARMS`,
-    :data:`LEGS`) of another sample of the batch, relative to the trunk: poses the clips do not
-    hold together."""
-    pick = np.flatnonzero(rng.random(len(P)) < share)
-    if not len(pick):
-        return P
-    donor = rng.integers(len(P), size=len(pick))
-    R, Rd = _trunk(P[pick]), _trunk(P[donor])  # (n, SEG, 3, 3)
-    Q = P.copy()
-    for root, mid, end in chains:
-        for a, c in ((root, mid), (mid, end)):
-            v = np.einsum("nsji,nsj->nsi", Rd, P[donor, :, c] - P[donor, :, a])  # in the donor's trunk
-            Q[pick, :, c] = Q[pick, :, a] + np.einsum("nsij,nsj->nsi", R, v)
-    return Q
-
-
 def sample(clips, weights, B: int, rng: np.random.Generator, faults: bool = True,
-           spin: float = 0.0, turns: float = 2.0, arms: float = 0.0, legs: float = 0.0):
+           spin: float = 0.0, turns: float = 2.0):
     """A batch: features (B, 81, N_FEATURES) and targets (B, 12, 3) in limb lengths;
-    ``spin``: the share of samples turned by :func:`spun`; ``arms``, ``legs``: the shares given
-    another's arms, legs by :func:`limbs_swapped`."""
+    ``spin``: the share of samples turned by :func:`spun`."""
     K = len(BODY)
     P = np.empty((B, SEG, K, 3))
     dt = np.empty(B)
@@ -205,10 +172,6 @@ def sample(clips, weights, B: int, rng: np.random.Generator, faults: bool = True
         dt[b] = st / c["fps"]
     if spin > 0:
         P = spun(P, dt, rng, spin, turns)
-    if arms > 0:
-        P = limbs_swapped(P, rng, arms, ARMS)
-    if legs > 0:
-        P = limbs_swapped(P, rng, legs, LEGS)
     mirror = rng.random(B) < 0.5
     P[mirror] = P[mirror][:, :, FLIP] * np.array([-1.0, 1.0, 1.0])
     # bones scaled: hips and shoulders about their midpoints, torso, then each limb outwards
@@ -430,10 +393,6 @@ def main(argv=None):
     ap.add_argument("--spin", type=float, default=0.0,
                     help="share of training samples turned about the vertical (spins; default 0)")
     ap.add_argument("--turns", type=float, default=2.0, help="the spins' fastest rate, turns a second")
-    ap.add_argument("--arms", type=float, default=0.0,
-                    help="share of training samples given another sample's arms (default 0)")
-    ap.add_argument("--legs", type=float, default=0.0,
-                    help="share of training samples given another sample's legs (default 0)")
     ap.add_argument("--init", help="go on training from this weights file (the same --hold-out: checked)")
     a = ap.parse_args(argv)
     import torch
@@ -465,7 +424,7 @@ def main(argv=None):
         model.train()
         if init is not None:
             freeze_norms(model)
-        X, Y = sample(train, w, a.batch, rng, spin=a.spin, turns=a.turns, arms=a.arms, legs=a.legs)
+        X, Y = sample(train, w, a.batch, rng, spin=a.spin, turns=a.turns)
         mpjpe, nll = loss_terms(model(torch.from_numpy(X)), torch.from_numpy(Y))
         loss = mpjpe + 0.1 * nll
         opt.zero_grad()
