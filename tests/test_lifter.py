@@ -313,3 +313,38 @@ def test_reconstruct_with_the_lifter_on_a_held_out_clip():
     assert flip_rate(Pe, P, cam, segs) < 0.10
     assert [r for r in build_problem(fig, tracks, cam, lifter="auto").problem.rows if r.name == "lifted"]
     assert not [r for r in build_problem(fig, tracks, cam, lifter="none").problem.rows if r.name == "lifted"]
+
+
+def _train_tool():
+    import importlib.util
+    from pathlib import Path
+
+    spec = importlib.util.spec_from_file_location(
+        "train_lifter", Path(__file__).resolve().parents[1] / "tools" / "train_lifter.py")  # tools/ is not installed
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_training_spins_turn_the_body_at_a_steady_rate():
+    """``--spin``: the chosen samples turn about the vertical through the hips' midpoint at one
+    rate of 0.25-``turns`` turns a second; heights and every distance between points kept, the
+    window's middle frame (the target's) unchanged, the other samples untouched."""
+    tool = _train_tool()
+    rng = np.random.default_rng(3)
+    B, S, K = 40, tool.SEG, len(BODY)
+    P = rng.normal(size=(B, S, K, 3)) * 0.3
+    P[..., 1] += 1.0
+    dt = rng.choice([1 / 30, 1 / 20, 1 / 50], B)
+    Q = tool.spun(P, dt, np.random.default_rng(5), 0.5, 2.0)
+    moved = np.flatnonzero(np.abs(Q - P).max(axis=(1, 2, 3)) > 0)
+    assert 8 < len(moved) < 32 and np.array_equal(Q[np.setdiff1d(np.arange(B), moved)], P[np.setdiff1d(np.arange(B), moved)])
+    assert np.array_equal(Q[..., 1], P[..., 1]) and np.abs(Q[:, S // 2] - P[:, S // 2]).max() < 1e-12
+    d = lambda X: np.linalg.norm(X[:, :, :, None] - X[:, :, None], axis=-1)  # noqa: E731
+    assert np.abs(d(Q) - d(P)).max() < 1e-12
+    for b in moved:  # the angle between a point's bearing from the hips' midpoint before and after
+        c = P[b, :, [6, 7]].mean(0)
+        a0 = np.arctan2(P[b, :, 0, 2] - c[:, 2], P[b, :, 0, 0] - c[:, 0])
+        a1 = np.arctan2(Q[b, :, 0, 2] - c[:, 2], Q[b, :, 0, 0] - c[:, 0])
+        step = np.diff(np.unwrap(a0 - a1)) / dt[b] / (2 * np.pi)  # turns a second
+        assert np.ptp(step) < 1e-9 and 0.25 - 1e-9 <= abs(step[0]) <= 2.0 + 1e-9
