@@ -14,9 +14,10 @@ limb, +-15 % hip and shoulder width); a random perspective camera (all around, 2
 faults of 2D detectors (0-4 px noise, 0-5 % outliers thrown 20-100 px with lower confidence,
 0-3 % of frames with left/right exchanged, 0-10 % points missing and spans of one missing
 point, sometimes no confidences at all); the camera's intrinsics given (normalised
-coordinates) three times in four. With ``--spin SHARE`` that share of the segments also turns about the
-vertical at a steady 0.25-2 turns a second (not used for the shipped weights; the model card says why). Features: ``pinrecon.lifter.features`` (the same function
-inference uses) of the 161 frames, the middle 81 kept. Target: the middle frame's joints
+coordinates) three times in four; with ``--spin SHARE`` that share of the segments turned
+about the vertical at a steady 0.25-2 turns a second (not for the shipped weights: the model
+card says why). Features: ``pinrecon.lifter.features`` (the same function inference uses) of
+the 161 frames, the middle 81 kept. Target: the middle frame's joints
 relative to the hips' midpoint in the camera's axes, in mean limb lengths. Model: a temporal
 convolution (VideoPose3D's: kernel 3 stride 3 over 81 frames, 3 residual blocks, BatchNorm,
 dropout), loss MPJPE + 0.1 x a Gaussian NLL for the per-joint spread (errors detached).
