@@ -90,6 +90,18 @@ def _registered(get: str, name: str, *, module: bool) -> Path:
         pytest.skip(str(exc), allow_module_level=module)
 
 
+def checkout_module(relative: str):
+    """A script of the checkout that is not installed (``tools/...``, ``bench/...``), loaded as a
+    module from ``relative`` (a path from the repository's root)."""
+    import importlib.util
+
+    path = REPO / relative
+    spec = importlib.util.spec_from_file_location(path.stem, path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
 def data_file(name: str) -> Path:
     """A registered third-party data file (pinrecon.datasets): from PINRECON_DATA or the cache;
     where it cannot be had, the test is skipped (fails with PINRECON_DATA set)."""

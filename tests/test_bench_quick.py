@@ -4,7 +4,7 @@ them all: a script added without one fails here. The quick runs themselves are i
 
 from __future__ import annotations
 
-from conftest import REPO
+from conftest import REPO, checkout_module
 
 HELPERS = {"provenance", "quick", "run_quick"}
 
@@ -17,9 +17,5 @@ def test_every_bench_script_has_a_quick_mode():
 
 
 def test_run_quick_lists_every_script():
-    import importlib.util
-
-    spec = importlib.util.spec_from_file_location("run_quick", REPO / "bench" / "run_quick.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
+    mod = checkout_module("bench/run_quick.py")
     assert mod.SCRIPTS == sorted(p.stem for p in (REPO / "bench").glob("*.py") if p.stem not in HELPERS)

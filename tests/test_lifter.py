@@ -7,7 +7,7 @@ import re
 
 import numpy as np
 import pytest
-from conftest import data_file
+from conftest import checkout_module, data_file
 
 import pinrecon as pr
 from pinrecon import datasets
@@ -315,22 +315,11 @@ def test_reconstruct_with_the_lifter_on_a_held_out_clip():
     assert not [r for r in build_problem(fig, tracks, cam, lifter="none").problem.rows if r.name == "lifted"]
 
 
-def _train_tool():
-    import importlib.util
-    from pathlib import Path
-
-    spec = importlib.util.spec_from_file_location(
-        "train_lifter", Path(__file__).resolve().parents[1] / "tools" / "train_lifter.py")  # tools/ is not installed
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
-
-
 def test_training_spins_turn_the_body_at_a_steady_rate():
     """``--spin``: the chosen samples turn about the vertical through the hips' midpoint at one
     rate of 0.25-``turns`` turns a second; heights and every distance between points kept, the
     window's middle frame (the target's) unchanged, the other samples untouched."""
-    tool = _train_tool()
+    tool = checkout_module("tools/train_lifter.py")
     rng = np.random.default_rng(3)
     B, S, K = 40, tool.SEG, len(BODY)
     P = rng.normal(size=(B, S, K, 3)) * 0.3

@@ -6,12 +6,11 @@ tests/test_posture_prior.py (parametrized over both bundled priors)."""
 
 from __future__ import annotations
 
-import importlib.util
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import checkout_module
 
 import pinrecon as pr
 from pinrecon._resources import model_path
@@ -34,11 +33,7 @@ def _qidx(names):
 
 
 def _tool():
-    path = Path(__file__).resolve().parents[1] / "tools" / "fit_pose_prior.py"
-    spec = importlib.util.spec_from_file_location("fit_pose_prior", path)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return checkout_module("tools/fit_pose_prior.py")
 
 
 def test_the_bundled_mixture_is_a_mixture_of_proper_gaussians():

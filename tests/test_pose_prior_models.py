@@ -5,14 +5,13 @@ fit (other joint names, another rest pose), and the command line's one-line erro
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import re
-from pathlib import Path
 
 import numpy as np
 import pytest
 from bvh_reference import reference_clip
+from conftest import checkout_module
 
 import pinrecon as pr
 from pinrecon._resources import bundled_clip, model_path
@@ -24,15 +23,11 @@ from pinrecon.rows.posture import PosePrior, prior_for
 from pinrecon.synthetic import COCO_BODY_FROM_CMU, bundled_motion, project_tracks, side_camera
 
 CMU_UNIT_M = 0.056444
-ROOT = Path(__file__).resolve().parents[1]  # the checkout: tools/ is not installed
 CMU_STATIC = ["LHipJoint", "RHipJoint", "LeftShoulder", "RightShoulder"]
 
 
 def _tool():
-    spec = importlib.util.spec_from_file_location("fit_pose_prior", ROOT / "tools" / "fit_pose_prior.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return checkout_module("tools/fit_pose_prior.py")
 
 
 def test_which_prior_a_figure_gets():
