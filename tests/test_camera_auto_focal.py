@@ -141,9 +141,9 @@ def test_the_last_move_may_report_from_the_profile_already_solved(focal_inputs, 
         calls.clear()
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            first = settle_focal(problem, res0, auto, rounds=0, every_step=True)[1]["focal"]
+            first = settle_focal(problem, res0, auto, rounds=0)[1]["focal"]
             n_first = len(calls)
-            res, a = settle_focal(problem, res0, auto, rounds=1, final_profile=final, every_step=True)
+            res, a = settle_focal(problem, res0, auto, rounds=1, final_profile=final)
         out[final] = res, a["focal"], len(calls) - n_first
     assert n_first == 6
     (res_t, rep_t, n_t), (res_f, rep_f, n_f) = out[True], out[False]
@@ -188,7 +188,7 @@ def test_a_profile_that_is_no_valley_moves_the_focal_length_only_within_the_rang
     g_fit = np.asarray(res0.g, float)
     marks = {}
 
-    def profile(problem, res, steps, options, stop_above=None):  # falling to the longest: no valley
+    def profile(problem, res, steps, options):  # falling to the longest: no valley
         out = [(f_fit, float(res0.cost), np.asarray(res0.x), g_fit)]
         for k, f in enumerate((0.5, 0.8, 1.2, 1.5, 2.0, 3.0)):
             g = g_fit.copy()
@@ -213,43 +213,6 @@ def test_a_profile_that_is_no_valley_moves_the_focal_length_only_within_the_rang
         assert starts == [pytest.approx(3.0 * f_fit)]  # no range: the lowest of all
 
 
-def test_each_side_of_the_profile_stops_where_it_has_risen_past_the_threshold(focal_inputs, monkeypatch):
-    """``settle_focal`` (and ``check_focal``) solve each side of the profile outwards only up to
-    its first point more than ``threshold`` nats above the fit: the points they return are the
-    first points of every step's profile, every point left out costs more than that, and the
-    report (interval, determined) and the move are those of the whole profile. Ground truth:
-    the profile solved at every step (``every_step``), and the points' costs against the fit's."""
-    from pinrecon import solver
-    from pinrecon.starts.camera_auto import PROFILE_THRESHOLD, check_focal, settle_focal
-
-    problem, res0, auto = focal_inputs
-    calls, real = [], solver.solve
-    monkeypatch.setattr(solver, "solve", lambda *a, **k: calls.append(1) or real(*a, **k))
-    monkeypatch.setattr("pinrecon.starts.camera_auto.forkable", lambda *a: False)
-    out = {}
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        for every in (True, False):
-            calls.clear()
-            rep = check_focal(problem, res0, auto, every_step=every)["focal"]
-            out[every] = rep, len(calls), settle_focal(problem, res0, auto, rounds=1, every_step=every)
-    (whole, n_whole, (res_w, a_w)), (part, n_part, (res_p, a_p)) = out[True], out[False]
-    f_fit, c_fit = whole["focal_px"], float(res0.cost)
-    assert n_whole == 6 and len(whole["profile"]) == 7
-    kept = {round(f, 6) for f, _ in part["profile"]}
-    assert kept <= {round(f, 6) for f, _ in whole["profile"]}
-    for sign in (1.0, -1.0):  # outwards from the fit on each side
-        side = sorted(((f, c) for f, c in whole["profile"] if sign * np.log(f / f_fit) > 1e-9),
-                      key=lambda p: sign * p[0])
-        first_above = next((i for i, (_, c) in enumerate(side) if c > c_fit + PROFILE_THRESHOLD), len(side) - 1)
-        assert [round(f, 6) in kept for f, _ in side] == [i <= first_above for i in range(len(side))]
-    assert n_part == len(part["profile"]) - 1 < n_whole  # this walk rises past the threshold on a side
-    assert part["interval_px"] == pytest.approx(whole["interval_px"], rel=1e-9)
-    assert part["determined"] == whole["determined"]
-    np.testing.assert_allclose(res_p.x, res_w.x, rtol=0, atol=1e-12)
-    assert a_p["focal"]["focal_px"] == pytest.approx(a_w["focal"]["focal_px"], rel=1e-12)
-
-
 def test_the_longer_focal_lengths_are_profiled_beside_with_the_same_points(focal_inputs, monkeypatch):
     """Where a child can be forked, it solves the profile's longer focal lengths while this
     process solves the shorter ones: the same points to the last digit, three of the six solves
@@ -265,7 +228,7 @@ def test_the_longer_focal_lengths_are_profiled_beside_with_the_same_points(focal
         calls.clear()
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            out[fork] = check_focal(*focal_inputs, every_step=True)["focal"], len(calls)
+            out[fork] = check_focal(*focal_inputs)["focal"], len(calls)
     (here, n_here), (beside, n_beside) = out[False], out[True]
     assert (n_here, n_beside) == (6, 3)
     assert len(here["profile"]) == 7 and here["profile"] == beside["profile"]
@@ -391,9 +354,9 @@ def test_a_long_clip_is_profiled_on_its_stretch_nearest_the_camera_and_moved_who
     monkeypatch.setattr("pinrecon.starts.camera_auto.forkable", lambda *a: False)  # every solve here, where it is seen
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        whole, _ = settle_focal(problem, res0, auto, rounds=1, final_profile=False, every_step=True)
+        whole, _ = settle_focal(problem, res0, auto, rounds=1, final_profile=False)
         lengths.clear()
-        part, a = settle_focal(problem, res0, auto, rounds=1, final_profile=False, profile_frames=30, every_step=True)
+        part, a = settle_focal(problem, res0, auto, rounds=1, final_profile=False, profile_frames=30)
     assert z[0] < 2.8 < 4.2 < z[-1] and near == [0, 30]  # the walk as its docstring says
     assert problem.n_frames == 60 and a["focal"]["frames"] == near
     assert "along frames 0-29, where the profile was taken" in a["focal"]["message"] or a["focal"]["determined"]

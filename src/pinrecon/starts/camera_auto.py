@@ -411,19 +411,17 @@ def fitted_focal(problem, res) -> float | None:
     return None if of is None else float(of[0].value(of[1]))
 
 
-def _profile_solves(problem, res, steps, options, stop_above: float | None = None):
+def _profile_solves(problem, res, steps, options):
     """The profile's solves: ``[(focal_px, cost, Q, g)]``, the fit first; None without an
     auto focal length. The longer focal lengths are solved in a child process beside the
-    shorter ones where one can be forked (:class:`~pinrecon.processes.Beside`).
-    ``stop_above``: each side stops at its first point more than this many nats above the fit."""
+    shorter ones where one can be forked (:class:`~pinrecon.processes.Beside`)."""
     of = _focal_of(problem, res)
     if of is None:
         return None
     intr, g_fit = of
     first = [(intr.value(g_fit), float(res.cost), np.asarray(res.x, float), g_fit)]
-    with Beside(_profile_side, problem, res, intr, g_fit, steps, options, 1.0, stop_above,
-                fork=forkable(problem.n_frames)) as longer:
-        shorter = _profile_side(problem, res, intr, g_fit, steps, options, -1.0, stop_above)
+    with Beside(_profile_side, problem, res, intr, g_fit, steps, options, 1.0, fork=forkable(problem.n_frames)) as longer:
+        shorter = _profile_side(problem, res, intr, g_fit, steps, options, -1.0)
         return first + longer.result() + shorter
 
 
@@ -456,9 +454,9 @@ def profile_stretch(problem, res, n: int | None, options=None, frames: tuple | N
     return part, solve(part, np.asarray(res.x, float)[lo:hi], options, active=part.active, g0=g_fit), (lo, hi)
 
 
-def _profile_side(problem, res, intr, g_fit, steps, options, sign: float, stop_above: float | None = None):
+def _profile_side(problem, res, intr, g_fit, steps, options, sign: float):
     """The profile's solves on one side of the fit (``sign`` 1: longer focal lengths), each
-    from the one before it, up to the first more than ``stop_above`` nats above the fit."""
+    from the one before it."""
     from ..solver import solve
 
     col = intr.col
@@ -477,25 +475,15 @@ def _profile_side(problem, res, intr, g_fit, steps, options, sign: float, stop_a
         if r.g is not None and len(r.g):
             gg = np.array(r.g, float)
         out.append((float(f_fit * np.exp(sign * d)), float(r.cost), Q, gg))
-        if stop_above is not None and r.cost > res.cost + stop_above:
-            break
     return out
 
 
-def _tested(solves, steps) -> tuple[float, float]:
-    """The focal lengths (px) a profile around ``solves``' fit (its first entry) spans at every
-    step, whether or not its sides stopped before the farthest."""
-    f_fit, d = solves[0][0], max(steps)
-    return float(f_fit * np.exp(-d)), float(f_fit * np.exp(d))
-
-
-def _report(problem, res, solves, threshold, tolerance, span=None) -> FocalReport:
+def _report(problem, res, solves, threshold, tolerance) -> FocalReport:
     intr, g_fit = _focal_of(problem, res)
     f_fit = intr.value(g_fit)
     cam_fit = intr.camera(g_fit)
     points = [(f, c) for f, c, _, _ in solves]
-    interval, bounded, determined = profile_interval(points, f_fit, threshold=threshold, tolerance=tolerance,
-                                                     span=span)
+    interval, bounded, determined = profile_interval(points, f_fit, threshold=threshold, tolerance=tolerance)
     z = cam_fit.depth(np.asarray(res.x, float)[:, :3])
     z = z[z > 1e-6]
     ratio = float(z.max() / z.min()) if len(z) else 1.0
@@ -503,8 +491,7 @@ def _report(problem, res, solves, threshold, tolerance, span=None) -> FocalRepor
                        ratio, determined, float(tolerance), float(threshold))
 
 
-def profile_interval(points, f_fit: float, *, threshold: float = PROFILE_THRESHOLD, tolerance: float = 0.1,
-                     span: tuple[float, float] | None = None):
+def profile_interval(points, f_fit: float, *, threshold: float = PROFILE_THRESHOLD, tolerance: float = 0.1):
     """``(interval_px, bounded, determined)`` from a cost profile ``points`` ((focal_px,
     cost) pairs, the fitted ``f_fit`` among them).
 
@@ -518,7 +505,7 @@ def profile_interval(points, f_fit: float, *, threshold: float = PROFILE_THRESHO
     Otherwise nothing in the tested range is ruled out: a profile that jumps between
     branches of poses, or rises less than ``threshold`` across the tested range, or keeps
     falling past its end cannot put f anywhere, and the interval is the whole tested
-    range (``bounded`` False on both sides): ``span`` (lo, hi) px, by default the points' extent."""
+    range (``bounded`` False on both sides)."""
     pts = sorted((float(f), float(c)) for f, c in points)
     f_arr = np.array([p[0] for p in pts])
     c_arr = np.array([p[1] for p in pts])
@@ -531,8 +518,7 @@ def profile_interval(points, f_fit: float, *, threshold: float = PROFILE_THRESHO
         and f_arr[best + 1] <= f_fit * np.exp(max(tolerance, 0.1) + 1e-9)
     determined = bool(unimodal and close and c_arr[best - 1] > level and c_arr[best + 1] > level)
     if not determined:
-        lo, hi = span if span is not None else (f_arr[0], f_arr[-1])
-        return (float(lo), float(hi)), (False, False), False
+        return (float(f_arr[0]), float(f_arr[-1])), (False, False), False
 
     # the parabola in log f through the lowest point and its two neighbours (exact for a
     # quadratic profile; a chord would cut the valley narrower than it is)
@@ -593,7 +579,7 @@ def check_focal(problem, res, auto: dict | None, **kw) -> dict | None:
 def settle_focal(problem, res, auto: dict | None, *, options=None, rounds: int = 3, min_gain: float = 0.5,
                  steps: Sequence[float] = PROFILE_STEPS, tolerance: float = 0.1,
                  threshold: float = PROFILE_THRESHOLD, undetermined_range: tuple[float, float] | None = None,
-                 final_profile: bool = True, profile_frames: int | None = None, every_step: bool = False):
+                 final_profile: bool = True, profile_frames: int | None = None):
     """``(res, auto)``: the solve carried to the bottom of its focal length's cost profile,
     and :func:`check_focal`'s description of it.
 
@@ -612,22 +598,17 @@ def settle_focal(problem, res, auto: dict | None, *, options=None, rounds: int =
     function of the focal length, sampled less densely there: it says "determined" only
     where those points show the valley). ``profile_frames``: a clip longer than that is profiled
     on its stretch of that many frames where the subject's depth changes most
-    (:func:`profile_stretch`), the move solved on the whole clip (the report says which frames).
-    Each side of a profile stops at its first point more than ``threshold`` nats above the fit,
-    where the interval ends (its farther steps are not solved: a second valley beyond such a
-    rise is not looked for); ``every_step`` solves them all, as :func:`focal_profile` does."""
+    (:func:`profile_stretch`), the move solved on the whole clip (the report says which frames)."""
     if not auto or auto.get("projection") != "perspective":
         return res, auto
     from ..solver import solve
 
     part, part_res, frames = profile_stretch(problem, res, profile_frames, options) or (problem, res, None)
-    stop = None if every_step else threshold
-    solves = _profile_solves(part, part_res, steps, options, stop)
+    solves = _profile_solves(part, part_res, steps, options)
     if solves is None:
         return res, auto
-    span = _tested(solves, steps)
     lo, hi = 0.0, np.inf
-    if undetermined_range is not None and not _report(part, part_res, solves, threshold, tolerance, span).determined:
+    if undetermined_range is not None and not _report(part, part_res, solves, threshold, tolerance).determined:
         lo, hi = undetermined_range
     for k in range(rounds):
         f, cost, Q, g = min([x for x in solves if lo <= x[0] <= hi] or solves[:1], key=lambda s: s[1])
@@ -643,11 +624,9 @@ def settle_focal(problem, res, auto: dict | None, *, options=None, rounds: int =
         if k == rounds - 1 and not final_profile:
             intr, g_fit = _focal_of(part, part_res)
             solves = [(intr.value(g_fit), float(part_res.cost), np.asarray(part_res.x, float), g_fit), *solves]
-            span = (min(span[0], solves[0][0]), max(span[1], solves[0][0]))
         else:
-            solves = _profile_solves(part, part_res, steps, options, stop)
-            span = _tested(solves, steps)
-    rep = _report(part, part_res, solves, threshold, tolerance, span)
+            solves = _profile_solves(part, part_res, steps, options)
+    rep = _report(part, part_res, solves, threshold, tolerance)
     if frames is not None:  # the whole clip's focal length; its profile the stretch's
         intr, g_fit = _focal_of(problem, res)
         rep = dataclasses.replace(rep, focal_px=float(intr.value(g_fit)), frames=tuple(int(v) for v in frames))
