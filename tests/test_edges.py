@@ -88,6 +88,30 @@ def test_progress_is_labelled_by_stage(clip, tmp_path, capsys):
     assert iters and not any(ln.startswith("iter ") for ln in iters)  # every iteration line names its stage
 
 
+def test_progress_to_a_file_shows_a_stage_of_many_short_solves_in_few_lines(capsys):
+    """Written to a file or a pipe, a stage's iteration lines are its first iteration, every
+    10th of each solve and every rejected step: the mirror stage's dozens of short solves do not
+    print a line each. Ground truth: the lines written out here by hand."""
+    from pinrecon.commands import SolveProgress
+    from pinrecon.solver import IterationReport
+
+    def rep(k, accepted=True):
+        return IterationReport(k, 100.0 - k, {}, 0.1, 1e-3, 1.0, accepted, 0.0, "" if accepted else "cost rose")
+
+    progress = SolveProgress(False, 100)
+    progress.stage("mirrors")
+    for n in (3, 2, 12, 4):  # four solves of the stage: 3, 2, 12 and 4 iterations
+        for k in range(1, n + 1):
+            progress(rep(k, accepted=not (n == 4 and k == 2)))
+    progress.stage("feet")
+    for k in range(1, 3):
+        progress(rep(k))
+    lines = [ln.split("  cost")[0] for ln in capsys.readouterr().err.splitlines()]
+    assert [ln.split(" (")[0] for ln in lines] == [
+        "pinrecon: stage mirrors", "mirrors: iter   1/100", "mirrors: iter  10/100", "mirrors: iter   2/100",
+        "pinrecon: stage feet", "feet: iter   1/100"]
+
+
 def test_summary_time_is_the_whole_runs(solved):
     res = pr.load_result(solved[3])
     run = float(res.extras["run_time_s"])

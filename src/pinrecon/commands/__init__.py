@@ -26,8 +26,10 @@ def register_all(sub) -> None:
 class SolveProgress:
     """The commands' solver progress on stderr: a labelled line as each stage of
     :func:`pinrecon.reconstruct` starts (:meth:`stage`), and the solver's iterations (the
-    instance is its ``callback``): a live line on a terminal, one line per 10 iterations (and
-    every rejected step) when stderr is a file or a pipe. ``quiet``: nothing."""
+    instance is its ``callback``): a live line on a terminal; when stderr is a file or a pipe, a
+    stage's first iteration, every 10th of each solve and every rejected step (a stage that tries
+    many short solves, as the mirror stage does, shows one line, not one per solve). ``quiet``:
+    nothing."""
 
     def __init__(self, quiet: bool, max_iterations: int):
         self.quiet = quiet
@@ -36,6 +38,7 @@ class SolveProgress:
         self.tty = sys.stderr.isatty()
         self.dirty = False
         self.label = ""
+        self.shown = False  # the stage's first iteration shown (file or pipe)
 
     def stage(self, name: str):
         """A stage of :func:`pinrecon.reconstruct` starts (:mod:`pinrecon.stages`): one labelled line."""
@@ -44,6 +47,7 @@ class SolveProgress:
         self.close()
         print(f"pinrecon: stage {name} ({time.perf_counter() - self.t0:.1f}s)", file=sys.stderr, flush=True)
         self.label = f"{name}: "
+        self.shown = False
 
     def __call__(self, rep) -> None:
         if self.quiet:
@@ -57,8 +61,9 @@ class SolveProgress:
         if self.tty:
             print("\r" + line.ljust(78), end="", file=sys.stderr, flush=True)
             self.dirty = True
-        elif not rep.accepted or rep.iteration % 10 == 0 or rep.iteration == 1:
+        elif not rep.accepted or rep.iteration % 10 == 0 or (rep.iteration == 1 and not self.shown):
             print(line, file=sys.stderr, flush=True)
+            self.shown = True
 
     def window(self, rep):
         """One solved window of a long clip (:class:`pinrecon.windowed.WindowReport`), with
