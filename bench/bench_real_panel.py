@@ -22,6 +22,7 @@ means per route and over every run. To compare two commits, run it with the othe
 
     OMP_NUM_THREADS=1 python bench/bench_real_panel.py            # about 2 min
     PYTHONPATH=/path/to/other/checkout/src OMP_NUM_THREADS=1 python bench/bench_real_panel.py
+    OMP_NUM_THREADS=1 python bench/bench_real_panel.py --skip mirrors   # a stage switched off everywhere
 """
 
 from __future__ import annotations
@@ -54,21 +55,24 @@ ROUTES = ("video", "mediapipe-2d", "openpose")
 OPENPOSE_IMAGE, OPENPOSE_FPS = (1088, 1920), 60.0
 
 
-def solved(route: str, cam: int):
-    """The default path's :class:`~pinrecon.result.Result` of camera ``cam`` by ``route``."""
+def solved(route: str, cam: int, skip: tuple[str, ...] = ()):
+    """The default path's :class:`~pinrecon.result.Result` of camera ``cam`` by ``route``, the
+    stages ``skip`` switched off."""
     video = datasets.fetch(f"{bench_video.TRIAL}/videos/cam{cam:02d}.mp4")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         if route == "openpose":
             tracks = pr.load_tracks(datasets.folder(f"{bench_video.TRIAL}/pose/cam{cam:02d}_json"), fps=OPENPOSE_FPS)
-            return pr.reconstruct(pr.Figure.human("auto", tracks=tracks), tracks, "auto", image_size=OPENPOSE_IMAGE)
+            return pr.reconstruct(pr.Figure.human("auto", tracks=tracks), tracks, "auto", image_size=OPENPOSE_IMAGE,
+                                  skip=skip)
         tr, _ = bench_video.tracked(video, False)
         if route == "video":
             with tempfile.TemporaryDirectory() as out:
-                args = build_parser().parse_args(["video", str(video), "--out", out, "--quiet"])
+                args = build_parser().parse_args(["video", str(video), "--out", out, "--quiet"]
+                                                 + (["--skip", *skip] if skip else []))
                 return run_video(args, tracked=[tr])["result"]
         bare = pr.Tracks(tr.points, tr.names, tr.fps, tr.confidence, tr.source, tr.layout)
-        return pr.reconstruct(pr.Figure.human(), bare, "auto", image_size=video_info(video).image_size)
+        return pr.reconstruct(pr.Figure.human(), bare, "auto", image_size=video_info(video).image_size, skip=skip)
 
 
 def score(res, G: np.ndarray, camera) -> tuple[float, float, float]:
@@ -82,24 +86,27 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--cams", type=int, nargs="*", default=[1, 2, 3, 4], help="which phones (1-4)")
     ap.add_argument("--routes", nargs="*", choices=ROUTES, default=list(ROUTES))
+    ap.add_argument("--skip", nargs="*", default=[], metavar="STAGE",
+                    help="stages to switch off in every run (pinrecon.stages.STAGES; default none)")
     a = ap.parse_args(argv)
     from provenance import provenance
 
     print(provenance())
     print("command: OMP_NUM_THREADS=1 python bench/bench_real_panel.py"
           + (f" --cams {' '.join(map(str, a.cams))}" if a.cams != [1, 2, 3, 4] else "")
-          + (f" --routes {' '.join(a.routes)}" if a.routes != list(ROUTES) else ""))
+          + (f" --routes {' '.join(a.routes)}" if a.routes != list(ROUTES) else "")
+          + (f" --skip {' '.join(a.skip)}" if a.skip else ""))
     G = bench_video.truth()
     cams = load_cameras(datasets.fetch(f"{bench_video.TRIAL}/calibration/Calib_qualisys.toml"))
     print("\nPose2Sim's balancing trial, each phone alone, the default path (Figure.human(), camera 'auto', no "
-          "keyframes), against the four-camera triangulation; PA-MPJPE (mm) / flipped limb segments (%) / the "
-          "reconstruct call (s)\n")
+          f"keyframes{'; stages switched off: ' + ', '.join(a.skip) if a.skip else ''}), against the four-camera "
+          "triangulation; PA-MPJPE (mm) / flipped limb segments (%) / the reconstruct call (s)\n")
     print("| camera | " + " | ".join(a.routes) + " |")
     print("|---|" + "---|" * len(a.routes), flush=True)
     table = np.full((len(a.cams), len(a.routes), 3), np.nan)
     for i, c in enumerate(a.cams):
         for j, route in enumerate(a.routes):
-            table[i, j] = score(solved(route, c), G, cams[c - 1].camera)
+            table[i, j] = score(solved(route, c, tuple(a.skip)), G, cams[c - 1].camera)
         print(f"| cam{c:02d} | " + " | ".join(f"{p:.1f} / {f:.1f} / {s:.1f}" for p, f, s in table[i]) + " |",
               flush=True)
     m = table.mean(axis=0)
