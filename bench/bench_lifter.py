@@ -71,6 +71,15 @@ FOLDS = {"no5": ["spin", "dance"], "no2_9": ["walk", "run"], "shipped": []}
 TARGETS = {"walk": (30.0, 5.0), "run": (30.0, 5.0), "spin": (40.0, None), "dance": (40.0, None)}
 TRC = "pose2sim-balancing/pose-3d/S00_P00_T01_BalancingTrial_0-100.trc"
 CALIB = "pose2sim-balancing/calibration/Calib_qualisys.toml"
+#: the OpenPose detections' image (width, height; the phones held upright), which their files do not store
+OPENPOSE_IMAGE = (1088, 1920)
+
+
+def openpose_tracks(cam: int):
+    """Pose2Sim's OpenPose BODY_25B detections of phone ``cam`` (1-4), 60 frames/s."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return pr.load_tracks(datasets.folder(f"pose2sim-balancing/pose/cam0{cam}_json"), fps=60.0)
 
 
 def fold_path(folds: Path, fold: str) -> Path:
@@ -150,9 +159,7 @@ def pose2sim_rows(model):
     cams = load_cameras(datasets.fetch(CALIB))
     rows = []
     for k in range(4):
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            tracks = pr.load_tracks(datasets.folder(f"pose2sim-balancing/pose/cam0{k + 1}_json"), fps=60.0)
+        tracks = openpose_tracks(k + 1)
         cam = cams[k].camera
         for label, given in (("calibration", cam), ("no camera", None)):
             r = score_lifted(lift(tracks, given, model=model), G, cam)
@@ -175,9 +182,7 @@ def pose2sim_map_rows(path, weight=None, cameras=(1, 2, 3, 4), calibrated=False)
     segs = [(BODY.index(a), BODY.index(b)) for a, b in bench_real.SEGMENTS]
     rows = []
     for k in cameras:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            tracks = pr.load_tracks(datasets.folder(f"pose2sim-balancing/pose/cam0{k}_json"), fps=60.0)
+        tracks = openpose_tracks(k)
         cam = cams[k - 1].camera
         out = {}
         for label, lifter in (("default", "none"), ("lifter", str(path))):
@@ -185,7 +190,7 @@ def pose2sim_map_rows(path, weight=None, cameras=(1, 2, 3, 4), calibrated=False)
             t0 = time.perf_counter()
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
-                given = {"camera": cams[k - 1]} if calibrated else {"camera": "auto", "image_size": (1088, 1920)}
+                given = {"camera": cams[k - 1]} if calibrated else {"camera": "auto", "image_size": OPENPOSE_IMAGE}
                 res = pr.reconstruct(pr.Figure.human("auto", tracks=tracks), tracks, lifter=lifter, weights=w, **given)
             P = bench_real.in_true_world(res.keypoints3d[:, res.figure.keypoint_index(list(BODY))], res.cameras[0], cam)
             out[label] = {"pa": metrics.pa_mpjpe(P, G), "flips": 100.0 * metrics.flip_rate(P, G, cam, segs),

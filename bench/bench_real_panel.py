@@ -13,7 +13,7 @@ routes a user takes:
   bench_video.py, which runs MediaPipe where the cache is empty);
 * ``mediapipe-2d``: the same tracks without the world landmarks (pinrecon's own lifter joins);
 * ``openpose``: Pose2Sim's OpenPose BODY_25B detections of the same frames (the lifter joins),
-  image 1088 x 1920, 60 frames/s;
+  as bench_lifter.py reads them;
 
 and prints each run's PA-MPJPE and flipped limb segments against the four-camera triangulation
 (12 COCO body points, bench_real's segments) and the ``reconstruct`` call's seconds, then the
@@ -40,7 +40,9 @@ import numpy as np
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-import bench_real  # bench/ is the script's folder
+import bench_lifter  # bench/ is the script's folder
+import bench_real
+import bench_stages
 import bench_video
 
 import pinrecon as pr
@@ -48,31 +50,28 @@ from pinrecon import datasets, metrics
 from pinrecon.cli import build_parser
 from pinrecon.commands.video import run_video
 from pinrecon.io.calibration import load_cameras
-from pinrecon.video import video_info
 
 COCO12 = bench_video.COCO12
 ROUTES = ("video", "mediapipe-2d", "openpose")
-OPENPOSE_IMAGE, OPENPOSE_FPS = (1088, 1920), 60.0
 
 
 def solved(route: str, cam: int, skip: tuple[str, ...] = ()):
     """The default path's :class:`~pinrecon.result.Result` of camera ``cam`` by ``route``, the
     stages ``skip`` switched off."""
-    video = datasets.fetch(f"{bench_video.TRIAL}/videos/cam{cam:02d}.mp4")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         if route == "openpose":
-            tracks = pr.load_tracks(datasets.folder(f"{bench_video.TRIAL}/pose/cam{cam:02d}_json"), fps=OPENPOSE_FPS)
-            return pr.reconstruct(pr.Figure.human("auto", tracks=tracks), tracks, "auto", image_size=OPENPOSE_IMAGE,
-                                  skip=skip)
-        tr, _ = bench_video.tracked(video, False)
-        if route == "video":
-            with tempfile.TemporaryDirectory() as out:
-                args = build_parser().parse_args(["video", str(video), "--out", out, "--quiet"]
-                                                 + (["--skip", *skip] if skip else []))
-                return run_video(args, tracked=[tr])["result"]
-        bare = pr.Tracks(tr.points, tr.names, tr.fps, tr.confidence, tr.source, tr.layout)
-        return pr.reconstruct(pr.Figure.human(), bare, "auto", image_size=video_info(video).image_size, skip=skip)
+            tracks = bench_lifter.openpose_tracks(cam)
+            return pr.reconstruct(pr.Figure.human("auto", tracks=tracks), tracks, "auto",
+                                  image_size=bench_lifter.OPENPOSE_IMAGE, skip=skip)
+        if route == "mediapipe-2d":  # bench_stages' real case without cues: the tracks, the image size
+            bare, size = bench_stages.real_case(cam, False)[:2]
+            return pr.reconstruct(pr.Figure.human(), bare, "auto", image_size=size, skip=skip)
+        video = datasets.fetch(f"{bench_video.TRIAL}/videos/cam{cam:02d}.mp4")
+        with tempfile.TemporaryDirectory() as out:
+            args = build_parser().parse_args(["video", str(video), "--out", out, "--quiet"]
+                                             + (["--skip", *skip] if skip else []))
+            return run_video(args, tracked=[bench_video.tracked(video, False)[0]])["result"]
 
 
 def score(res, G: np.ndarray, camera) -> tuple[float, float, float]:
